@@ -1,0 +1,29 @@
+# Fresh machine: `make run` (sets up, runs the main job) and `make test` (sets up, runs the tests).
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: setup run test bench clean
+
+setup: $(STAMP)
+
+# idempotent: rebuilt only when the package metadata changes
+$(STAMP): setup.py setup.cfg package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade "pip>=24"
+	$(PY) -m pip install --quiet -e ".[ros,test]"
+	touch $(STAMP)
+
+run: setup
+	$(VENV)/bin/predictive-drive run im_paper --strategy db_mptc --engine inprocess
+
+test: setup
+	$(VENV)/bin/ruff check src test
+	$(PY) -m pytest -q test
+
+bench: setup
+	$(VENV)/bin/predictive-drive bench
+
+clean:
+	rm -rf $(VENV) build install log

@@ -1,0 +1,45 @@
+"""ament_python package: `colcon build` installs the node executables into lib/predictive_drive."""
+
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+PACKAGE = "predictive_drive"
+NODES = ["plant_node", "speed_pi_node", "torque_controller_node", "metrics_logger_node"]
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Model predictive torque control of electric drives on a lock-step ROS 2 graph",
+    long_description=Path(__file__).with_name("README.md").read_text(encoding="utf-8"),
+    long_description_content_type="text/markdown",
+    license="Apache-2.0",
+    python_requires=">=3.10",
+    package_dir={"": "src"},
+    packages=find_packages("src"),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", sorted(str(p) for p in Path("config").glob("*.yaml"))),
+    ],
+    install_requires=[
+        "numpy>=1.24,<3",
+        "mcap>=1.1,<2",
+        "PyYAML>=6,<7",
+        "tqdm>=4.60,<5",
+    ],
+    extras_require={
+        # what a ROS 2 Jazzy install already provides; the Makefile installs it from wheels
+        "ros": ["ros-jazzy-rclpy[fastrtps]>=7.1,<8", "ros-jazzy-common-interfaces>=5.3,<6"],
+        "test": ["pytest>=8,<10", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
+                 "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
+                 "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1"],
+    },
+    zip_safe=True,
+    entry_points={
+        "console_scripts": [
+            "predictive-drive = predictive_drive.cli:main",
+            *(f"{n} = predictive_drive.ros.{n}:main" for n in NODES),
+        ],
+    },
+)

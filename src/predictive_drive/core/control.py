@@ -1,0 +1,318 @@
+"""Inner predictive torque control: strategies, their registry and the controller (SPEC §3.2).
+
+The controller owns what every strategy shares — the stator-flux estimate (SPEC §2.5), the soft start,
+the zero-vector choice and the command format — and asks its strategy for (vector, duty) each step.
+Strategies are plain objects with ``decide(step, torque_ref, flux_ref) -> Decision``; the registry
+maps machine type → strategy name → class.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import NamedTuple, Protocol
+
+from ..errors import ConfigError
+from .inverter import active_then_zero, vector_voltages
+from .motors import InductionCoefficients, InductionMotor
+from .signals import Command, Reference, State
+
+__all__ = [
+    "A0_FORMS",
+    "DBMPTC",
+    "MPTC",
+    "MPTCDB",
+    "STRATEGIES",
+    "Decision",
+    "IMPrediction",
+    "InductionController",
+    "InductionControllerParams",
+    "Machine",
+    "Strategy",
+    "make_strategy",
+    "strategy_names",
+]
+
+INF = math.inf
+NAN = math.nan
+
+#: how a_0 of the torque derivative is formed: ``derived`` (correct, default) or ``paper_printed``
+#: (paper 000 eq 10 as printed, wrong sign on the ω_r·Re(conj(ψ_s)·i_s) term; for reproduction only)
+A0_FORMS = ("derived", "paper_printed")
+
+
+class Machine(StrEnum):
+    INDUCTION = "induction"
+
+
+class Decision(NamedTuple):
+    vector: int  #: 0..6
+    fraction: float  #: share of Ts the vector is applied, 0..1 (rest: zero vector)
+    t_u: float  #: raw deadbeat time, s (NaN if none was computed)
+    cal: int  #: predictions evaluated
+
+
+class IMPrediction:
+    """One step's forward-Euler prediction of the IM (SPEC §2.2) from the controller's view.
+
+    Precomputes everything that does not depend on the candidate vector, so each candidate costs a
+    few complex operations: i(k+1) = i_free + Ts/(σL_s)·u, ψ(k+1) = ψ_free + Ts·u.
+    """
+
+    __slots__ = (
+        "c",
+        "ts",
+        "lam",
+        "a0_printed",
+        "i",
+        "psi",
+        "te",
+        "a0",
+        "i_free",
+        "psi_free",
+        "gain_i",
+        "volts",
+        "_z",
+    )
+
+    def __init__(self, c: InductionCoefficients, ts: float, lam: float, a0_printed: bool) -> None:
+        self.c = c
+        self.ts = ts
+        self.lam = lam
+        self.a0_printed = a0_printed
+
+    def prepare(self, i: complex, psi: complex, omega_m: float, volts: tuple[complex, ...]) -> None:
+        c = self.c
+        ts = self.ts
+        wr = c.p * omega_m
+        self.i = i
+        self.psi = psi
+        self.volts = volts
+        cross = psi.real * i.imag - psi.imag * i.real  # Im(conj(ψ) i)
+        dot = psi.real * i.real + psi.imag * i.imag  # Re(conj(ψ) i)
+        self.te = c.torque_k * cross
+        mag2 = psi.real * psi.real + psi.imag * psi.imag
+        re_sign = -1.0 if self.a0_printed else 1.0
+        self.a0 = c.torque_k * (c.a_ii * cross + re_sign * wr * dot - wr * mag2 * c.c_w)
+        self.i_free = i + ts * (complex(c.a_ii, wr) * i + complex(c.b_ipsi, -wr * c.c_w) * psi)
+        self.psi_free = psi - ts * c.r_s * i
+        self.gain_i = ts * c.c_w
+        self._z = i - c.c_w * psi
+
+    def a_u(self, u: complex) -> float:
+        """Voltage-dependent part of dT_e/dt, N·m/s per applied vector u (paper 000 eq 10)."""
+        z = self._z
+        return self.c.torque_k * (u.real * z.imag - u.imag * z.real)
+
+    def deadbeat_time(self, u: complex, torque_ref: float) -> float:
+        """t_u = (T* - T_e(k) - Ts·a_0)/a_u, s (paper 000 eq 13); ±inf when a_u = 0."""
+        num = torque_ref - self.te - self.ts * self.a0
+        au = self.a_u(u)
+        if au == 0.0:
+            return math.copysign(INF, num) if num else INF
+        return num / au
+
+
+class Strategy(Protocol):
+    name: str
+
+    def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision: ...
+
+
+class MPTC:
+    """Conventional FCS-MPTC: 7 vectors, g = |T* - T(k+1)| + λ·|ψ* - |ψ(k+1)||, argmin for Ts."""
+
+    name = "mptc"
+
+    def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        return Decision(_argmin_full_period(m, torque_ref, flux_ref), 1.0, NAN, 7)
+
+
+class MPTCDB:
+    """MPTC, then a deadbeat duty for the chosen vector (paper 000 §2, eq 9-14)."""
+
+    name = "mptc_db"
+
+    def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        n = _argmin_full_period(m, torque_ref, flux_ref)
+        if n == 0:
+            return Decision(0, 1.0, NAN, 7)
+        t_u = m.deadbeat_time(m.volts[n], torque_ref)
+        return Decision(n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7)
+
+
+class DBMPTC:
+    """Deadbeat time per vector first, then MPTC on the scaled vectors (paper 000 §3, eq 15-16)."""
+
+    name = "db_mptc"
+
+    def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        ts = m.ts
+        lam = m.lam
+        te = m.te
+        a0ts = ts * m.a0
+        psi_free = m.psi_free
+        num = torque_ref - te - a0ts
+        tk = m.c.torque_k
+        z = m._z
+        zr, zi = z.real, z.imag
+        volts = m.volts
+        # V0: applied for the whole period, t_u = Ts
+        best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free))
+        best_n, best_t = 0, ts
+        raw_best = ts
+        cal = 1
+        for n in range(1, 7):
+            u = volts[n]
+            au = tk * (u.real * zi - u.imag * zr)  # m.a_u(u), inlined
+            t_raw = num / au if au != 0.0 else (math.copysign(INF, num) if num else INF)
+            if t_raw < 0.0:
+                continue  # drives the torque the wrong way: discarded, not predicted
+            t_u = t_raw if t_raw < ts else ts
+            cal += 1
+            t1 = te + t_u * au + a0ts
+            p1 = psi_free + t_u * u
+            g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+            if g < best:
+                best, best_n, best_t, raw_best = g, n, t_u, t_raw
+        return Decision(best_n, best_t / ts, raw_best, cal)
+
+
+def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> int:
+    """First strict minimum over V0..V6 of the full-period cost."""
+    tk = m.c.torque_k
+    lam = m.lam
+    i_free, psi_free, gain_i, ts = m.i_free, m.psi_free, m.gain_i, m.ts
+    best = INF
+    best_n = 0
+    for n, u in enumerate(m.volts):
+        i1 = i_free + gain_i * u
+        p1 = psi_free + ts * u
+        t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
+        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+        if g < best:
+            best, best_n = g, n
+    return best_n
+
+
+STRATEGIES: Mapping[Machine, Mapping[str, type]] = {
+    Machine.INDUCTION: {"mptc": MPTC, "mptc_db": MPTCDB, "db_mptc": DBMPTC},
+}
+
+
+def strategy_names(machine: Machine | str) -> tuple[str, ...]:
+    return tuple(STRATEGIES[Machine(machine)])
+
+
+def make_strategy(machine: Machine | str, name: str) -> Strategy:
+    """Instantiate strategy ``name`` for ``machine``; ValueError lists the valid names."""
+    try:
+        m = Machine(machine)
+    except ValueError:
+        raise ValueError(
+            f"unknown machine {machine!r}; valid: {', '.join(x.value for x in Machine)}"
+        ) from None
+    registry = STRATEGIES[m]
+    if name not in registry:
+        raise ValueError(
+            f"unknown strategy {name!r} for machine {m.value!r}; valid: {', '.join(registry)}"
+        )
+    strategy: Strategy = registry[name]()
+    return strategy
+
+
+@dataclass(frozen=True)
+class InductionControllerParams:
+    """Controller settings for the IM (paper 000 §4).
+
+    ``motor`` is the controller's own model (may differ from the plant's: parameter mismatch).
+    lambda_psi: λ of the cost, N·m/Wb (17.5, no normalisation); soft_start_flux in Wb and
+    soft_start_current in A (paper 000 §4: 0.65 Wb, 6.5 A); a0_form one of :data:`A0_FORMS`.
+    """
+
+    motor: InductionMotor
+    strategy: str
+    lambda_psi: float = 17.5
+    soft_start_flux: float = 0.65
+    soft_start_current: float = 6.5
+    a0_form: str = "derived"
+
+    def __post_init__(self) -> None:
+        if self.strategy not in STRATEGIES[Machine.INDUCTION]:
+            raise ConfigError(
+                f"torque_controller.strategy: unknown strategy {self.strategy!r} for machine "
+                f"'induction'; valid: {', '.join(STRATEGIES[Machine.INDUCTION])}"
+            )
+        if self.a0_form not in A0_FORMS:
+            raise ConfigError(
+                f"torque_controller.a0_form: {self.a0_form!r} is not one of {', '.join(A0_FORMS)}"
+            )
+        for name in ("lambda_psi", "soft_start_flux", "soft_start_current"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"torque_controller.{name} must be a number >= 0, got {v!r}")
+
+
+class InductionController:
+    """Predictive torque controller for the IM: ``step(state k, reference k) -> command k``."""
+
+    machine = Machine.INDUCTION
+
+    def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
+        self.params = params
+        self.ts = ts
+        c = InductionCoefficients.of(params.motor)
+        self._coef = c
+        self._pred = IMPrediction(c, ts, params.lambda_psi, params.a0_form == "paper_printed")
+        self._names = strategy_names(self.machine)
+        self.strategy: Strategy = make_strategy(self.machine, params.strategy)
+        self.psi_hat = 0j
+        self.soft_start = params.soft_start_flux > 0
+        self.switches = (0, 0, 0)
+        self._u_dc = NAN
+        self._volts: tuple[complex, ...] = ()
+
+    def set_strategy(self, name: str) -> None:
+        """Switch the control law; takes effect at the next step. ValueError if unknown."""
+        self.strategy = make_strategy(self.machine, name)
+
+    @property
+    def strategy_index(self) -> int:
+        return self._names.index(self.strategy.name)
+
+    def step(self, state: State, ref: Reference) -> Command:
+        t0 = time.perf_counter_ns()
+        p = self.params
+        i = complex(state.i_alpha, state.i_beta)
+        psi = self.psi_hat
+        if state.u_dc != self._u_dc:
+            self._u_dc = state.u_dc
+            self._volts = vector_voltages(state.u_dc)
+        if self.soft_start and abs(psi) >= p.soft_start_flux:
+            self.soft_start = False  # latched off for good (SPEC §3.2)
+        m = self._pred
+        m.prepare(i, psi, state.omega_m, self._volts)
+        if self.soft_start:
+            d = Decision(0 if abs(i) > p.soft_start_current else 1, 1.0, NAN, 0)
+        else:
+            d = self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
+        elapsed = time.perf_counter_ns() - t0
+        pulses, self.switches = active_then_zero(d.vector, d.fraction, self.switches)
+        u_avg = d.fraction * self._volts[d.vector]
+        self.psi_hat = psi + self.ts * (u_avg - self._coef.r_s * i)
+        return Command(
+            state.k,
+            state.t,
+            *pulses,
+            float(self.strategy_index),
+            float(d.vector),
+            d.fraction,
+            d.t_u,
+            float(d.cal),
+            m.te,
+            abs(psi),
+            float(elapsed),
+        )

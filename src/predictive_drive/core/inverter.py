@@ -1,0 +1,156 @@
+"""Two-level inverter: switching states, voltage vectors and per-period switching sequences (SPEC §2.1).
+
+Space vectors use the amplitude-invariant Clarke transform, u = (2/3)·U_dc·(S_a + a·S_b + a²·S_c) with
+a = exp(j·2π/3). Vector numbering follows both papers: V0 = 000, V1 = 100 (0°), V2 = 110 (60°),
+V3 = 010 (120°), V4 = 011 (180°), V5 = 001 (240°), V6 = 101 (300°), V7 = 111.
+
+The command format shared by every strategy is a single pulse per phase and period: phase x is high on
+[delay_x, delay_x + duty_x) (fractions of Ts) and low elsewhere. One active vector for the whole period,
+a vector followed by a zero vector (deadbeat duty) and centre-aligned PWM are all special cases.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from typing import NamedTuple
+
+__all__ = [
+    "VECTOR_STATES",
+    "PhasePulses",
+    "active_then_zero",
+    "clarke",
+    "segments",
+    "state_to_vector",
+    "unit_vectors",
+    "vector_voltages",
+    "zero_state_for",
+]
+
+A = cmath.exp(2j * math.pi / 3)
+
+#: switching state (S_a, S_b, S_c) of V0..V7
+VECTOR_STATES: tuple[tuple[int, int, int], ...] = (
+    (0, 0, 0),
+    (1, 0, 0),
+    (1, 1, 0),
+    (0, 1, 0),
+    (0, 1, 1),
+    (0, 0, 1),
+    (1, 0, 1),
+    (1, 1, 1),
+)
+_STATE_INDEX = {s: n for n, s in enumerate(VECTOR_STATES)}
+
+
+def clarke(x_a: float, x_b: float, x_c: float) -> complex:
+    """Amplitude-invariant Clarke transform, x_αβ = 2/3 (x_a + a x_b + a² x_c)."""
+    return (2.0 / 3.0) * (x_a + A * x_b + A * A * x_c)
+
+
+def unit_vectors() -> tuple[complex, ...]:
+    """V0..V6 for U_dc = 1 V (multiply by U_dc to get volts)."""
+    return tuple(clarke(*VECTOR_STATES[n]) for n in range(7))
+
+
+_UNIT = unit_vectors()
+
+
+def vector_voltages(u_dc: float) -> tuple[complex, ...]:
+    """Voltage space vectors V0..V6 in V for the given DC-link voltage."""
+    return tuple(u_dc * v for v in _UNIT)
+
+
+def state_to_vector(state: tuple[int, int, int]) -> int:
+    """Vector number 0..7 of a switching state."""
+    return _STATE_INDEX[state]
+
+
+def zero_state_for(previous: tuple[int, int, int]) -> tuple[int, int, int]:
+    """The zero vector (000 or 111) needing fewer switch changes from ``previous`` (ties: 000)."""
+    return (1, 1, 1) if sum(previous) >= 2 else (0, 0, 0)
+
+
+class PhasePulses(NamedTuple):
+    """One period's command: phase x is high on [delay_x, delay_x + duty_x), fractions of Ts."""
+
+    delay_a: float
+    delay_b: float
+    delay_c: float
+    duty_a: float
+    duty_b: float
+    duty_c: float
+
+
+def active_then_zero(
+    vector: int, fraction: float, previous: tuple[int, int, int]
+) -> tuple[PhasePulses, tuple[int, int, int]]:
+    """Vector ``vector`` for ``fraction``·Ts, then the zero vector for the rest.
+
+    The zero vector is 000 or 111, whichever needs fewer switch changes from the state before it: the
+    active vector if it is applied at all, otherwise ``previous`` (the state at the end of the last
+    period). Vector 0 (or 7) alone is one zero vector for the whole period. Returns the pulses and the
+    state at the end of the period.
+    """
+    if vector in (0, 7) or fraction <= 0.0:
+        z = zero_state_for(previous)
+        return _FULL[state_to_vector(z)], z
+    if fraction >= 1.0:
+        return _FULL[vector], VECTOR_STATES[vector]
+    kinds, z = _THEN_ZERO[vector]
+    f = fraction
+    g = 1.0 - f
+    da, db, dc = (
+        [(0.0, 1.0), (0.0, f), (f, g), (0.0, 0.0)][kinds[0]],
+        [(0.0, 1.0), (0.0, f), (f, g), (0.0, 0.0)][kinds[1]],
+        [(0.0, 1.0), (0.0, f), (f, g), (0.0, 0.0)][kinds[2]],
+    )
+    return PhasePulses(da[0], db[0], dc[0], da[1], db[1], dc[1]), z
+
+
+def segments(
+    pulses: tuple[float, float, float, float, float, float], previous: tuple[int, int, int]
+) -> tuple[list[tuple[tuple[int, int, int], float]], tuple[int, int, int], int]:
+    """Piecewise-constant switching states of one period.
+
+    ``pulses`` is a :class:`PhasePulses` (or the same six numbers in that order).
+    Returns ``(segments, end_state, transitions)``: segments as (state, fraction of Ts) in time order
+    with empty ones dropped, the state at the end of the period, and the number of on/off transitions of
+    the six devices in the period counted from ``previous`` (two per leg change).
+    """
+    ra, rb, rc, da, db, dc = pulses
+    fa, fb, fc = ra + da, rb + db, rc + dc
+    inner = {ra, rb, rc, fa, fb, fc}
+    inner.discard(0.0)
+    inner.discard(1.0)
+    out: list[tuple[tuple[int, int, int], float]] = []
+    pa, pb, pc = previous
+    transitions = 0
+    t0 = 0.0
+    for t1 in (*sorted(inner), 1.0) if inner else (1.0,):
+        mid = 0.5 * (t0 + t1)
+        sa, sb, sc = ra <= mid < fa, rb <= mid < fb, rc <= mid < fc
+        changed = (sa != pa) + (sb != pb) + (sc != pc)
+        if changed or not out:
+            transitions += changed
+            pa, pb, pc = int(sa), int(sb), int(sc)
+            out.append(((pa, pb, pc), t1 - t0))
+        else:
+            out[-1] = (out[-1][0], out[-1][1] + (t1 - t0))
+        t0 = t1
+    return out, (pa, pb, pc), 2 * transitions
+
+
+#: one vector for the whole period, V0..V7
+_FULL = tuple(PhasePulses(0.0, 0.0, 0.0, *(float(x) for x in st)) for st in VECTOR_STATES)
+
+
+def _then_zero_kinds(vector: int) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+    """Per phase: 0 high all period, 1 high then low, 2 low then high, 3 low all period."""
+    active = VECTOR_STATES[vector]
+    z = zero_state_for(active)
+    kinds = tuple((0 if s and zs else 1 if s else 2 if zs else 3) for s, zs in zip(active, z))
+    return (kinds[0], kinds[1], kinds[2]), z
+
+
+_THEN_ZERO = {n: _then_zero_kinds(n) for n in range(1, 7)}

@@ -1,0 +1,171 @@
+"""Run metrics from a :class:`Trace` (SPEC §6; paper definitions)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .trace import Trace
+
+__all__ = ["Metrics", "compute_metrics", "step_window"]
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Figures of one run over the window [t_start, t_end).
+
+    t_rmse: sqrt(mean((T_e - T*)²)), N·m, true plant torque at sample k against the reference in
+    force at step k. psi_rmse: same for |ψ_s| against ψ*, Wb. f_ave_hz: device transitions / (6·t),
+    two transitions per leg change. cal_ave: mean predictions per step. utilization: share of steps
+    choosing V0..V6. deadbeat_share: share of steps with 0 < t_u < Ts. compute_ns_*: control law only.
+    speed_rmse: ω_m against ω_m*, rad/s.
+    """
+
+    t_start: float
+    t_end: float
+    steps: int
+    t_rmse: float
+    psi_rmse: float
+    f_ave_hz: float
+    cal_ave: float
+    utilization: tuple[float, ...]
+    deadbeat_share: float
+    compute_ns_mean: float
+    compute_ns_median: float
+    speed_rmse: float
+    compute_ns_median_by_strategy: dict[str, float]
+
+    def as_dict(self) -> dict[str, object]:
+        d = asdict(self)
+        d["utilization"] = list(self.utilization)
+        return d
+
+
+def step_window(trace: Trace, t_start: float, t_end: float) -> tuple[int, int]:
+    """Steps [k0, k1) whose sample time lies in [t_start, t_end), clipped to the commands."""
+    k0 = max(0, math.ceil(t_start / trace.ts - 1e-9))
+    k1 = trace.steps if math.isinf(t_end) else min(trace.steps, math.ceil(t_end / trace.ts - 1e-9))
+    if k1 <= k0:
+        raise ValueError(
+            f"metrics window [{t_start}, {t_end}) s holds no step of this run "
+            f"({trace.steps} steps of {trace.ts} s)"
+        )
+    return k0, k1
+
+
+def compute_metrics(trace: Trace, *, t_start: float = 0.0, t_end: float = math.inf) -> Metrics:
+    k0, k1 = step_window(trace, t_start, t_end)
+    n = k1 - k0
+    te = trace.col("state", "torque")[k0:k1]
+    t_ref = trace.col("reference", "torque_ref")[k0:k1]
+    psi = np.hypot(trace.col("state", "psi_alpha")[k0:k1], trace.col("state", "psi_beta")[k0:k1])
+    psi_ref = trace.col("reference", "flux_ref")[k0:k1]
+    speed = trace.col("state", "omega_m")[k0:k1]
+    speed_ref = trace.col("reference", "speed_ref")[k0:k1]
+    transitions = trace.col("state", "transitions")[k0 + 1 : k1 + 1].sum()
+    vec = trace.col("command", "vector")[k0:k1].astype(int)
+    t_u = trace.col("command", "t_u")[k0:k1]
+    ns = trace.col("command", "compute_ns")[k0:k1]
+    strat = trace.col("command", "strategy")[k0:k1].astype(int)
+    with np.errstate(invalid="ignore"):
+        deadbeat = np.count_nonzero((t_u > 0.0) & (t_u < trace.ts))
+    by_strategy = {}
+    for s in np.unique(strat):
+        name = trace.strategy_names[s] if s < len(trace.strategy_names) else str(s)
+        by_strategy[name] = float(np.median(ns[strat == s]))
+    return Metrics(
+        t_start=k0 * trace.ts,
+        t_end=k1 * trace.ts,
+        steps=n,
+        t_rmse=float(np.sqrt(np.mean((te - t_ref) ** 2))),
+        psi_rmse=float(np.sqrt(np.mean((psi - psi_ref) ** 2))),
+        f_ave_hz=float(transitions / (6.0 * n * trace.ts)),
+        cal_ave=float(trace.col("command", "cal")[k0:k1].mean()),
+        utilization=tuple(float(x) for x in np.bincount(vec, minlength=7)[:7] / n),
+        deadbeat_share=deadbeat / n,
+        compute_ns_mean=float(ns.mean()),
+        compute_ns_median=float(np.median(ns)),
+        speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
+        compute_ns_median_by_strategy=by_strategy,
+    )
+
+
+class LiveMetrics:
+    """Running figures while a run is in progress (for /diagnostics), fed record by record.
+
+    Records may arrive interleaved across topics (the graph gives no cross-topic order); state k,
+    reference k and command k are paired by k. Figures cover the steps since the last snapshot.
+    """
+
+    #: WARN when the controller's torque estimate is off the true torque by more than this share of
+    #: the torque limit, RMS over the period (a parameter-mismatch symptom)
+    ESTIMATE_WARN_SHARE = 0.05
+
+    def __init__(self, *, ts: float, torque_limit: float, period: float = 1.0) -> None:
+        self.ts = ts
+        self.torque_limit = torque_limit
+        self.every = max(1, round(period / ts))
+        self._pending: dict[int, dict[str, tuple[float, ...]]] = {}
+        self._reset()
+        self.steps = 0
+
+    def _reset(self) -> None:
+        self._n = 0
+        self._t_err2 = 0.0
+        self._psi_err2 = 0.0
+        self._est_err2 = 0.0
+        self._speed_err2 = 0.0
+        self._transitions = 0.0
+
+    def add(self, record: str, row: tuple[float, ...]) -> dict[str, float] | None:
+        """Feed one record; returns a snapshot when a diagnostics period completes, else None."""
+        k = int(row[0])
+        slot = self._pending.setdefault(k, {})
+        slot[record] = row
+        if len(slot) < 3:
+            return None
+        del self._pending[k]
+        s, r, c = slot["state"], slot["reference"], slot["command"]
+        te = s[7]
+        self._t_err2 += (te - r[2]) ** 2
+        self._psi_err2 += (math.hypot(s[8], s[9]) - r[3]) ** 2
+        self._est_err2 += (c[13] - te) ** 2
+        self._speed_err2 += (s[4] - r[4]) ** 2
+        self._transitions += s[12]
+        self._n += 1
+        self.steps += 1
+        self._last_t = s[1]
+        self._last_strategy = c[8]
+        if self.steps % self.every:
+            return None
+        return self.flush()
+
+    def flush(self) -> dict[str, float] | None:
+        """Snapshot of the steps since the last one (None if there are none)."""
+        n = self._n
+        if n == 0:
+            return None
+        snap = {
+            "t": self._last_t,
+            "steps": float(self.steps),
+            "t_rmse": math.sqrt(self._t_err2 / n),
+            "psi_rmse": math.sqrt(self._psi_err2 / n),
+            "torque_estimate_rmse": math.sqrt(self._est_err2 / n),
+            "speed_rmse": math.sqrt(self._speed_err2 / n),
+            "f_ave_hz": self._transitions / (6.0 * n * self.ts),
+            "strategy": self._last_strategy,
+        }
+        self._reset()
+        return snap
+
+    def level(self, snap: dict[str, float]) -> tuple[int, str]:
+        """(diagnostic level, message) for a snapshot: 0 OK or 1 WARN."""
+        limit = self.ESTIMATE_WARN_SHARE * self.torque_limit
+        if snap["torque_estimate_rmse"] > limit:
+            return 1, (
+                f"controller torque estimate off by {snap['torque_estimate_rmse']:.3g} N·m RMS "
+                f"(> {limit:.3g}): model mismatch?"
+            )
+        return 0, "running"

@@ -1,0 +1,80 @@
+"""Outer speed loop: discrete PI with clamping anti-windup (SPEC §3.1)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+from .profiles import StepProfile
+from .signals import Reference, State
+
+__all__ = ["SpeedPI", "SpeedPIParams"]
+
+RPM = 2.0 * math.pi / 60.0  #: rad/s per r/min
+
+
+@dataclass(frozen=True)
+class SpeedPIParams:
+    """Speed PI and reference profile.
+
+    kp in N·m/(rad/s), ki in N·m/(rad/s)/s (the papers give no units; SPEC §3.1 default: the error in
+    rad/s and the integrator advancing by ki·Ts·e per step). torque_limit in N·m, flux_ref in Wb,
+    speed_times in s, speed_values_rpm in r/min (converted to rad/s internally).
+    """
+
+    kp: float
+    ki: float
+    torque_limit: float
+    flux_ref: float
+    speed_times: tuple[float, ...]
+    speed_values_rpm: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        for name in ("kp", "ki"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"speed_pi.{name} must be a number >= 0, got {v!r}")
+        for name in ("torque_limit", "flux_ref"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"speed_pi.{name} must be a positive number, got {v!r}")
+        self.speed_profile()  # validates
+
+    def speed_profile(self) -> StepProfile:
+        return StepProfile(tuple(self.speed_times), tuple(v * RPM for v in self.speed_values_rpm))
+
+
+class SpeedPI:
+    """T*(k) = sat(Kp·e(k) + I(k)), I(k+1) = I(k) + Ki·Ts·e(k) unless the output saturates in the
+    direction of e (clamping anti-windup). ψ* is constant.
+
+    The graph's one-sample delay lives here: ``step(state k)`` returns the reference for step k+1;
+    ``initial()`` is the reference for step 0 (T* = 0).
+    """
+
+    def __init__(self, params: SpeedPIParams, *, ts: float) -> None:
+        self.params = params
+        self.ts = ts
+        self._speed = params.speed_profile().sampled(ts)
+        self.integral = 0.0
+
+    def initial(self) -> Reference:
+        return Reference(0.0, 0.0, 0.0, self.params.flux_ref, self._speed.at(0))
+
+    def step(self, state: State) -> Reference:
+        p = self.params
+        k = int(state.k)
+        w_ref = self._speed.at(k)
+        e = w_ref - state.omega_m
+        raw = p.kp * e + self.integral
+        lim = p.torque_limit
+        if raw > lim:
+            out, saturated = lim, e > 0
+        elif raw < -lim:
+            out, saturated = -lim, e < 0
+        else:
+            out, saturated = raw, False
+        if not saturated:
+            self.integral += p.ki * self.ts * e
+        return Reference(float(k + 1), (k + 1) * self.ts, out, p.flux_ref, self._speed.at(k + 1))

@@ -1,0 +1,26 @@
+"""The project's exceptions: one class per subsystem, all under :class:`PredictiveDriveError`."""
+
+from __future__ import annotations
+
+__all__ = [
+    "BagError",
+    "ConfigError",
+    "GraphError",
+    "PredictiveDriveError",
+]
+
+
+class PredictiveDriveError(Exception):
+    """Base of every error this package raises on purpose."""
+
+
+class ConfigError(PredictiveDriveError, ValueError):
+    """A scenario file or parameter is wrong; the message names the file, key and allowed values."""
+
+
+class BagError(PredictiveDriveError):
+    """A recording cannot be written or read."""
+
+
+class GraphError(PredictiveDriveError):
+    """The ROS graph failed: a peer went silent, crashed or was interrupted."""

@@ -1,0 +1,359 @@
+"""The one module that owns the ROS interface: topic names, types, QoS and every message encoding.
+
+No rclpy here: messages are encoded to and decoded from CDR bytes by hand, so the nodes (raw publish /
+raw subscriptions), the in-process engine and the MCAP recorder all produce the *same bytes*.
+
+Per-step topics are ``std_msgs/Float64MultiArray`` with one labelled dimension: ``layout.dim[0].label``
+is the comma-separated field list of :mod:`predictive_drive.core.signals` (e.g. ``k,t,i_alpha,...``),
+``size = stride = len(fields)``, ``data_offset = 0``; ``data`` holds the values in that order.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import struct
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from .core.signals import Command, Reference, State
+from .errors import BagError
+
+__all__ = [
+    "LOCKSTEP_QOS",
+    "RECORD_TOPICS",
+    "TOPICS",
+    "Qos",
+    "Topic",
+    "decode_multiarray",
+    "encode_clock",
+    "encode_diagnostics",
+    "encode_joint_state",
+    "message_definition",
+    "type_hash",
+]
+
+FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
+
+
+@dataclass(frozen=True)
+class Qos:
+    """A QoS profile as plain data (the nodes turn it into rclpy's QoSProfile)."""
+
+    reliability: str  #: "reliable" | "best_effort"
+    durability: str  #: "volatile" | "transient_local"
+    history: str  #: "keep_last" | "keep_all"
+    depth: int
+
+    def rosbag2(self) -> dict[str, object]:
+        """rosbag2 (metadata version 9) form of one offered QoS profile."""
+        infinite = {"sec": 2147483647, "nsec": 4294967295}
+        return {
+            "history": self.history,
+            "depth": self.depth,
+            "reliability": self.reliability,
+            "durability": self.durability,
+            "deadline": dict(infinite),
+            "lifespan": dict(infinite),
+            "liveliness": "automatic",
+            "liveliness_lease_duration": dict(infinite),
+            "avoid_ros_namespace_conventions": False,
+        }
+
+
+#: lock-step edges and the recorder: nothing may be lost, so reliable and keep-all
+LOCKSTEP_QOS = Qos("reliable", "volatile", "keep_all", 0)
+TOOLS_QOS = Qos("reliable", "volatile", "keep_last", 100)
+CLOCK_QOS = Qos("best_effort", "volatile", "keep_last", 1)
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str
+    type: str  #: ROS type name, pkg/msg/Type
+    qos: Qos
+    fields: tuple[str, ...] = ()  #: labels of a Float64MultiArray record topic
+
+
+TOPICS: dict[str, Topic] = {
+    "state": Topic("/drive/state", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, State._fields),
+    "reference": Topic(
+        "/drive/torque_reference", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Reference._fields
+    ),
+    "command": Topic("/drive/command", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Command._fields),
+    "joint_states": Topic("/drive/joint_states", "sensor_msgs/msg/JointState", TOOLS_QOS),
+    "clock": Topic("/clock", "rosgraph_msgs/msg/Clock", CLOCK_QOS),
+    "diagnostics": Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", TOOLS_QOS),
+}
+#: record name (core.trace.RECORDS) → topic key, for the three per-step signal topics
+RECORD_TOPICS = {"state": "state", "reference": "reference", "command": "command"}
+#: decimation of /clock and /drive/joint_states: one message every this many steps' worth of time
+CLOCK_PERIOD = 1e-3  #: s of simulated time (1 kHz)
+
+
+# --- CDR (XCDR1, little endian) ---------------------------------------------------------------
+
+_HEADER = b"\x00\x01\x00\x00"
+
+
+class _Cdr:
+    """Minimal CDR writer; alignment is relative to the byte after the encapsulation header."""
+
+    __slots__ = ("buf",)
+
+    def __init__(self) -> None:
+        self.buf = bytearray(_HEADER)
+
+    def _align(self, n: int) -> None:
+        pad = (-(len(self.buf) - 4)) % n
+        if pad:
+            self.buf += b"\x00" * pad
+
+    def u8(self, v: int) -> None:
+        self.buf += struct.pack("<B", v)
+
+    def i32(self, v: int) -> None:
+        self._align(4)
+        self.buf += struct.pack("<i", v)
+
+    def u32(self, v: int) -> None:
+        self._align(4)
+        self.buf += struct.pack("<I", v)
+
+    def string(self, s: str) -> None:
+        b = s.encode()
+        self.u32(len(b) + 1)
+        self.buf += b + b"\x00"
+
+    def f64_seq(self, values: tuple[float, ...] | list[float]) -> None:
+        self.u32(len(values))
+        if values:
+            self._align(8)
+            self.buf += struct.pack(f"<{len(values)}d", *values)
+
+    def time(self, t: float) -> None:
+        sec, nsec = stamp(t)
+        self.i32(sec)
+        self.u32(nsec)
+
+
+def stamp(t: float) -> tuple[int, int]:
+    """Simulated time in s → (sec, nanosec), rounded to the nearest ns."""
+    ns = round(t * 1e9)
+    return ns // 1_000_000_000, ns % 1_000_000_000
+
+
+def stamp_ns(t: float) -> int:
+    return round(t * 1e9)
+
+
+class MultiArrayCodec:
+    """Float64MultiArray with a fixed label: the header is built once, each message is one pack."""
+
+    def __init__(self, fields: tuple[str, ...]) -> None:
+        self.fields = fields
+        w = _Cdr()
+        w.u32(1)  # one dimension
+        w.string(",".join(fields))
+        w.u32(len(fields))  # size
+        w.u32(len(fields))  # stride
+        w.u32(0)  # data_offset
+        w.u32(len(fields))  # data length
+        w._align(8)
+        self.prefix = bytes(w.buf)
+        self._fmt = struct.Struct(f"<{len(fields)}d")
+        self.size = len(self.prefix) + self._fmt.size
+
+    def encode(self, values: tuple[float, ...]) -> bytes:
+        return self.prefix + self._fmt.pack(*values)
+
+    def decode(self, data: bytes) -> tuple[float, ...]:
+        """Values of a message with exactly this layout (fast path); BagError otherwise."""
+        if len(data) != self.size or not data.startswith(self.prefix):
+            labels, values = decode_multiarray(data)
+            raise BagError(
+                f"Float64MultiArray layout mismatch: expected labels {','.join(self.fields)}, got "
+                f"{','.join(labels)} with {len(values)} values"
+            )
+        return self._fmt.unpack_from(data, len(self.prefix))
+
+
+CODECS: dict[str, MultiArrayCodec] = {
+    key: MultiArrayCodec(TOPICS[key].fields) for key in RECORD_TOPICS
+}
+
+
+def decode_multiarray(data: bytes) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """Any Float64MultiArray → (labels of dim[0] split at commas, data)."""
+    try:
+        off = 4
+
+        def align(n: int) -> None:
+            nonlocal off
+            off += (-(off - 4)) % n
+
+        def u32() -> int:
+            nonlocal off
+            align(4)
+            (v,) = struct.unpack_from("<I", data, off)
+            off += 4
+            return int(v)
+
+        labels: list[str] = []
+        for _ in range(u32()):
+            n = u32()
+            labels.append(data[off : off + n - 1].decode())
+            off += n
+            u32()
+            u32()
+        u32()  # data_offset
+        count = u32()
+        if count:
+            align(8)
+        values = struct.unpack_from(f"<{count}d", data, off)
+    except (struct.error, UnicodeDecodeError) as e:
+        raise BagError(f"not a Float64MultiArray: {e}") from None
+    split = tuple(labels[0].split(",")) if labels else ()
+    return split, values
+
+
+def encode_clock(t: float) -> bytes:
+    w = _Cdr()
+    w.time(t)
+    return bytes(w.buf)
+
+
+JOINT_NAME = "drive_shaft"
+
+
+def encode_joint_state(t: float, position: float, velocity: float, effort: float) -> bytes:
+    """sensor_msgs/JointState for the shaft: angle (rad), speed (rad/s), electromagnetic torque (N·m)."""
+    w = _Cdr()
+    w.time(t)
+    w.string("")  # frame_id
+    w.u32(1)
+    w.string(JOINT_NAME)
+    w.f64_seq((position,))
+    w.f64_seq((velocity,))
+    w.f64_seq((effort,))
+    return bytes(w.buf)
+
+
+#: diagnostic_msgs/DiagnosticStatus levels
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+
+
+def encode_diagnostics(
+    t: float, statuses: list[tuple[int, str, str, list[tuple[str, str]]]]
+) -> bytes:
+    """DiagnosticArray of (level, name, message, [(key, value), ...]); hardware_id = 'predictive_drive'."""
+    w = _Cdr()
+    w.time(t)
+    w.string("")
+    w.u32(len(statuses))
+    for level, name, message, values in statuses:
+        w.u8(level)
+        w.string(name)
+        w.string(message)
+        w.string("predictive_drive")
+        w.u32(len(values))
+        for key, value in values:
+            w.string(key)
+            w.string(value)
+    return bytes(w.buf)
+
+
+def fmt(v: float) -> str:
+    """A diagnostics value: repr of the float (round-trips exactly), 'nan' where undefined."""
+    return "nan" if math.isnan(v) else repr(float(v))
+
+
+# --- message definitions (for MCAP schemas) ----------------------------------------------------
+
+
+def _share_dirs() -> list[Path]:
+    dirs = [Path(sys.prefix) / "share"]
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix:
+            dirs.append(Path(prefix) / "share")
+    return dirs
+
+
+def _interface_file(type_name: str, suffix: str) -> Path:
+    pkg, _, name = type_name.split("/")
+    for d in _share_dirs():
+        p = d / pkg / "msg" / f"{name}{suffix}"
+        if p.is_file():
+            return p
+    raise BagError(
+        f"message definition {type_name} not found under share/{pkg}/msg/ in "
+        f"{', '.join(str(d) for d in _share_dirs())} (are the ROS message packages installed?)"
+    )
+
+
+def _deps(text: str, pkg: str) -> list[str]:
+    builtin = {
+        "bool",
+        "byte",
+        "char",
+        "float32",
+        "float64",
+        "int8",
+        "uint8",
+        "int16",
+        "uint16",
+        "int32",
+        "uint32",
+        "int64",
+        "uint64",
+        "string",
+        "wstring",
+    }
+    out = []
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.split()
+        if len(parts) < 2 or "=" in parts[1]:
+            continue
+        base = parts[0].split("[", 1)[0].split("<=", 1)[0]
+        if base in builtin:
+            continue
+        if "/" in base:
+            dep_pkg, dep = base.split("/")[0], base.split("/")[-1]
+        else:
+            dep_pkg, dep = ("builtin_interfaces" if base in ("Time", "Duration") else pkg), base
+        full = f"{dep_pkg}/msg/{dep}"
+        if full not in out:
+            out.append(full)
+    return out
+
+
+def message_definition(type_name: str) -> str:
+    """Full ros2msg text with dependencies, as rosbag2 writes it into MCAP schemas."""
+    main = _interface_file(type_name, ".msg").read_text()
+    parts = [main]
+    seen: set[str] = set()
+    queue = _deps(main, type_name.split("/")[0])
+    while queue:
+        dep = queue.pop(0)
+        if dep in seen:
+            continue
+        seen.add(dep)
+        text = _interface_file(dep, ".msg").read_text()
+        pkg, _, name = dep.split("/")
+        parts.append("=" * 80 + f"\nMSG: {pkg}/{name}\n" + text)
+        queue.extend(_deps(text, pkg))
+    return "\n".join(p.rstrip("\n") for p in parts) + "\n"
+
+
+def type_hash(type_name: str) -> str:
+    """RIHS01 type hash of a message type, from the type description the packages install."""
+    data = json.loads(_interface_file(type_name, ".json").read_text())
+    for h in data.get("type_hashes", []):
+        if h["type_name"] == type_name:
+            return str(h["hash_string"])
+    raise BagError(f"no type hash for {type_name} in its type description")

@@ -1,0 +1,26 @@
+"""Shared fixtures. Every test run isolates its ROS traffic (own domain id, localhost only)."""
+
+from __future__ import annotations
+
+import os
+import random
+
+import pytest
+
+# before anything imports rclpy: a domain of our own per test session, loopback only
+os.environ.setdefault("ROS_DOMAIN_ID", str(random.Random(os.getpid()).randint(100, 199)))
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+
+from predictive_drive.config import load_scenario  # noqa: E402
+from predictive_drive.core.runner import run_inprocess, with_strategy  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def im_short():
+    return load_scenario("im_short")
+
+
+@pytest.fixture(scope="session")
+def short_traces(im_short):
+    """A 0.4 s closed-loop run per IM strategy (shared: each takes about a second)."""
+    return {s: run_inprocess(with_strategy(im_short, s)) for s in ("mptc", "mptc_db", "db_mptc")}

@@ -1,0 +1,148 @@
+"""Recordings: rosbag2 MCAP layout, round trip, independent readers, truncated files."""
+
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+
+from predictive_drive import api
+from predictive_drive.bag import BagWriter, read_bag
+from predictive_drive.core.runner import run_inprocess
+from predictive_drive.errors import BagError
+from predictive_drive.interface import TOPICS
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory, im_short):
+    out = tmp_path_factory.mktemp("bags") / "run1"
+    sc, text = api.prepare("im_short", duration=0.06)
+    n = api.run_inprocess_to_bag(sc, text, out)
+    return out, sc, n
+
+
+def test_bag_directory_layout_and_metadata(recorded):
+    out, _, n = recorded
+    assert sorted(p.name for p in out.iterdir()) == ["metadata.yaml", "run1_0.mcap"]
+    meta = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["version"] == 9 and meta["storage_identifier"] == "mcap"
+    assert meta["relative_file_paths"] == ["run1_0.mcap"]
+    counts = {
+        t["topic_metadata"]["name"]: t["message_count"] for t in meta["topics_with_message_count"]
+    }
+    assert counts["/drive/state"] == n + 1 and counts["/drive/command"] == n
+    assert counts["/clock"] == counts["/drive/joint_states"] == n // 20 + 1  # 1 kHz of 20 kHz
+    assert meta["message_count"] == sum(counts.values())
+
+
+def test_round_trip_equals_the_in_memory_run(recorded, im_short):
+    out, sc, n = recorded
+    trace, info = read_bag(out)
+    direct = run_inprocess(sc)
+    assert info.complete and trace.steps == n == direct.steps
+    np.testing.assert_array_equal(trace.state, direct.state)
+    np.testing.assert_array_equal(trace.reference, direct.reference)
+    np.testing.assert_array_equal(trace.command[:, :-1], direct.command[:, :-1])
+
+
+def test_mcap_follows_rosbag2_conventions(recorded):
+    from mcap.reader import make_reader
+
+    out, _, _ = recorded
+    with (out / "run1_0.mcap").open("rb") as f:
+        reader = make_reader(f)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert header.profile == "ros2"
+    schemas = {s.name: s for s in summary.schemas.values()}
+    for t in TOPICS.values():
+        assert schemas[t.type].encoding == "ros2msg"
+    assert (
+        "MSG: std_msgs/MultiArrayDimension"
+        in schemas["std_msgs/msg/Float64MultiArray"].data.decode()
+    )
+    assert ("=" * 80 + "\nMSG: builtin_interfaces/Time") in schemas[
+        "rosgraph_msgs/msg/Clock"
+    ].data.decode()
+    for ch in summary.channels.values():
+        assert ch.message_encoding == "cdr"
+        assert ch.metadata["topic_type_hash"].startswith("RIHS01_")
+        qos = yaml.safe_load(ch.metadata["offered_qos_profiles"])
+        assert qos[0]["reliability"] in ("reliable", "best_effort")
+    assert "serialized_metadata" in meta["rosbag2"]
+    assert meta["predictive_drive"]["scenario"] == "im_short"
+    assert "ros__parameters" in meta["predictive_drive"]["scenario_yaml"]
+
+
+def test_independent_reader_rosbags_decodes_every_topic(recorded):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    out, _, n = recorded
+    seen = {}
+    with AnyReader([out], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for conn, _t, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            seen.setdefault(conn.topic, msg)
+    assert set(seen) == {t.name for t in TOPICS.values()}
+    st = seen["/drive/state"]
+    assert st.layout.dim[0].label.startswith("k,t,i_alpha,i_beta")
+    assert seen["/drive/joint_states"].name == ["drive_shaft"]
+    assert seen["/diagnostics"].status[0].name == "predictive_drive: drive"
+
+
+def test_mcap_ros2_support_decodes(recorded):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out, _, n = recorded
+    with (out / "run1_0.mcap").open("rb") as f:
+        msgs = list(
+            make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                topics=["/drive/command"]
+            )
+        )
+    assert len(msgs) == n
+    assert list(msgs[5].decoded_message.data)[0] == 5.0
+
+
+def test_truncated_file_reads_up_to_the_cut(recorded, tmp_path):
+    out, _, n = recorded
+    cut = tmp_path / "cut"
+    shutil.copytree(out, cut)
+    f = cut / "run1_0.mcap"
+    data = f.read_bytes()
+    f.write_bytes(data[: int(len(data) * 0.6)])  # as a SIGKILL mid-write would leave it
+    trace, info = read_bag(cut)
+    assert not info.complete
+    assert 0 < trace.steps < n
+
+
+def test_existing_bag_directory_is_refused(recorded):
+    out, _, _ = recorded
+    with pytest.raises(BagError, match="already exists"):
+        BagWriter(out, info={})
+
+
+def test_report_agrees_with_run(tmp_path):
+    r = api.run("im_short", engine="inprocess", duration=0.1, strategy="mptc", out=tmp_path / "r")
+    rep = api.report(tmp_path / "r")
+    assert rep["metrics"] == r.metrics.as_dict()
+    assert rep["strategy"] == "mptc" and rep["steps"] == 2000
+
+
+def test_switch_is_visible_in_recording(tmp_path):
+    api.run(
+        "im_short",
+        engine="inprocess",
+        duration=0.1,
+        strategy="mptc",
+        switches=[(0.07, "db_mptc")],
+        out=tmp_path / "s",
+    )
+    trace, _ = read_bag(tmp_path / "s")
+    strat = trace.col("command", "strategy")
+    names = trace.strategy_names
+    assert names[int(strat[0])] == "mptc" and names[int(strat[-1])] == "db_mptc"
+    assert np.flatnonzero(np.diff(strat))[0] + 1 == 1400  # exactly at 0.07 s

@@ -1,0 +1,100 @@
+"""Scenario files: ROS parameter-file form, validation errors that name file, key and allowed values."""
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+import yaml
+
+from predictive_drive.config import (
+    NAMESPACE,
+    NODE_SECTIONS,
+    config_dir,
+    load_scenario,
+    scenario_names,
+    section_fields,
+)
+from predictive_drive.core.motors import InductionMotor
+from predictive_drive.core.scenario import RunParams
+from predictive_drive.errors import ConfigError
+
+
+@pytest.mark.parametrize("name", scenario_names())
+def test_yaml_keys_equal_dataclass_fields(name):
+    doc = yaml.safe_load((config_dir() / f"{name}.yaml").read_text())
+    assert set(doc["/**"]["ros__parameters"]) == set(section_fields(RunParams))
+    for node, (cls, nested) in NODE_SECTIONS.items():
+        params = doc[f"{NAMESPACE}/{node}"]["ros__parameters"]
+        assert set(params) == set(section_fields(cls)), node
+        for key, sub in nested.items():
+            assert set(params[key]) == set(section_fields(sub)), f"{node}.{key}"
+    load_scenario(name)
+
+
+def test_im_paper_has_the_paper_values():
+    sc = load_scenario("im_paper")
+    assert sc.plant.motor == InductionMotor(
+        r_s=2.68, r_r=2.13, l_s=0.2834, l_r=0.2834, l_m=0.2751, p=1, j=0.005, b=0.0
+    )
+    assert (sc.ts, sc.run.duration, sc.plant.u_dc) == (5e-5, 6.0, 582.0)
+    assert sc.speed_pi.kp == 0.06 and sc.speed_pi.ki == 0.15 and sc.speed_pi.torque_limit == 7.5
+    assert sc.controller.lambda_psi == 17.5 and sc.speed_pi.flux_ref == 0.71
+    assert sc.plant.load_values == (3.0, -3.0, 3.0) and sc.plant.load_times == (0.0, 1.5, 4.5)
+
+
+def _edit(tmp_path: Path, edit) -> Path:
+    doc = yaml.safe_load((config_dir() / "im_short.yaml").read_text())
+    edit(doc)
+    p = tmp_path / "bad.yaml"
+    p.write_text(yaml.safe_dump(doc))
+    return p
+
+
+def _plant(doc):
+    return doc["/drive/plant"]["ros__parameters"]
+
+
+CASES = {
+    "wrong key": (
+        lambda d: _plant(d).update(udc=1.0),
+        r"/drive/plant: unknown key 'udc'; allowed keys: motor, u_dc",
+    ),
+    "missing key": (lambda d: _plant(d).pop("u_dc"), r"/drive/plant: missing key 'u_dc'"),
+    "negative inductance": (
+        lambda d: _plant(d)["motor"].update(l_s=-0.28),
+        r"/drive/plant.motor: InductionMotor.l_s must be a positive number",
+    ),
+    "unknown strategy": (
+        lambda d: d["/drive/torque_controller"]["ros__parameters"].update(strategy="dtc"),
+        r"strategy: unknown strategy 'dtc' for machine 'induction'; valid: mptc, mptc_db, db_mptc",
+    ),
+    "wrong type": (
+        lambda d: _plant(d).update(u_dc="high"),
+        r"/drive/plant.u_dc: expected a number, got 'high'",
+    ),
+    "missing section": (lambda d: d.pop("/drive/speed_pi"), r"missing section '/drive/speed_pi'"),
+    "unknown machine": (
+        lambda d: d["/**"]["ros__parameters"].update(machine="dc"),
+        r"machine: 'dc' is not one of induction",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", CASES, ids=list(CASES))
+def test_bad_scenario_errors_name_file_and_key(tmp_path, case):
+    edit, message = CASES[case]
+    path = _edit(tmp_path, edit)
+    with pytest.raises(ConfigError, match=message) as e:
+        load_scenario(path)
+    assert str(path) in str(e.value)
+
+
+def test_unknown_scenario_name_lists_available():
+    with pytest.raises(ConfigError, match="available: im_paper, im_short"):
+        load_scenario("nope")
+
+
+def test_dataclasses_are_frozen():
+    sc = load_scenario("im_short")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sc.plant.u_dc = 1.0  # type: ignore[misc]
