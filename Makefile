@@ -16,7 +16,7 @@ $(STAMP): setup.py setup.cfg package.xml
 	touch $(STAMP)
 
 run: setup
-	$(VENV)/bin/predictive-drive run im_paper --strategy db_mptc --engine inprocess
+	$(VENV)/bin/predictive-drive run im_paper --strategy db_mptc
 
 test: setup
 	$(VENV)/bin/ruff check src test

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .bag import BagWriter, read_bag
+from .bag import BagInfo, BagWriter, read_bag
 from .config import load_scenario_text, resolve_scenario_path
 from .core.control import strategy_names
 from .core.metrics import Metrics, compute_metrics
@@ -159,7 +159,7 @@ def run(
     if engine == "inprocess":
         run_inprocess_to_bag(sc, text, bag, switches, cb)
     else:
-        from .ros.launch import run_graph  # rclpy only when a ROS engine is asked for
+        from .ros.graph import run_graph  # rclpy only when a ROS engine is asked for
 
         run_graph(sc, text, bag, composed=(engine == "composed"), switches=switches, progress=cb)
     wall = time.perf_counter() - t0
@@ -167,13 +167,25 @@ def run(
     return RunResult(sc.name, sc.controller.strategy, engine, trace_steps, bag, wall, metrics)
 
 
-def _evaluate(bag: Path) -> tuple[Metrics, int]:
-    trace, info = read_bag(bag)
-    sc = scenario_of(info.info, info.path)
+def metrics_window(sc: Scenario) -> tuple[float, float]:
+    """The scenario's metrics window, clipped to the run (a run shorter than the window's start is
+    evaluated whole)."""
     lo = sc.logger
-    return compute_metrics(
-        trace, t_start=lo.window_start, t_end=min(lo.window_end, sc.run.duration)
-    ), trace.steps
+    end = min(lo.window_end, sc.run.duration)
+    start = lo.window_start if lo.window_start < end else 0.0
+    return start, end
+
+
+def evaluate(bag: str | Path) -> tuple[Metrics, int, BagInfo]:
+    """Metrics of a recording over its scenario's window, from the recording alone."""
+    trace, info = read_bag(bag)
+    start, end = metrics_window(scenario_of(info.info, info.path))
+    return compute_metrics(trace, t_start=start, t_end=end), trace.steps, info
+
+
+def _evaluate(bag: Path) -> tuple[Metrics, int]:
+    m, steps, _ = evaluate(bag)
+    return m, steps
 
 
 def scenario_of(info: dict[str, str], where: Path) -> Scenario:
@@ -186,16 +198,13 @@ def scenario_of(info: dict[str, str], where: Path) -> Scenario:
 
 def report(bag: str | Path) -> dict[str, Any]:
     """Metrics of a recording, from the recording alone."""
-    trace, info = read_bag(bag)
-    sc = scenario_of(info.info, info.path)
-    lo = sc.logger
-    m = compute_metrics(trace, t_start=lo.window_start, t_end=min(lo.window_end, sc.run.duration))
+    m, steps, info = evaluate(bag)
     return {
         "bag": str(Path(bag)),
         "scenario": info.info["scenario"],
         "strategy": info.info["strategy"],
         "engine": info.info["engine"],
-        "steps": trace.steps,
+        "steps": steps,
         "complete": info.complete,
         "metrics": m.as_dict(),
     }

@@ -73,6 +73,7 @@ class BagWriter:
         self._writer.add_metadata(
             META_NAME, {k: v if isinstance(v, str) else json.dumps(v) for k, v in info.items()}
         )
+        self._file.flush()  # a file cut short still says what it is
         self._write_metadata_yaml()  # provisional, rewritten on close
         self._seq = 0
 

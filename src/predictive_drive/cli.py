@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -158,6 +159,21 @@ def cmd_bench(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_param(a: argparse.Namespace) -> int:
+    from .ros.params import param
+
+    if a.action == "get":
+        if a.value is not None:
+            raise PredictiveDriveError("param get takes NODE NAME only")
+        print(param(node=a.node, name=a.name))
+    else:
+        if a.value is None:
+            raise PredictiveDriveError("param set needs NODE NAME VALUE")
+        param(node=a.node, name=a.name, value=a.value)
+        print(f"set {a.name} = {a.value} on {a.node}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="predictive-drive", description=__doc__)
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -207,10 +223,28 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--steps", type=int, default=20000)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
+    pp = sub.add_parser(
+        "param",
+        help="get or set a parameter of a running node "
+        "(uses ROS_DOMAIN_ID; `run` prints the domain of its graph)",
+    )
+    pp.add_argument("action", choices=["get", "set"])
+    pp.add_argument("node", help="node name, e.g. torque_controller or /drive/torque_controller")
+    pp.add_argument("name")
+    pp.add_argument("value", nargs="?")
+    pp.set_defaults(func=cmd_param)
     return p
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    # Ctrl-C and SIGTERM both end the run the same way: children stopped, bag closed. (A shell's
+    # background job inherits SIGINT ignored; the graph's owner must still honour it.)
+    signal.signal(signal.SIGINT, _interrupt)
+    signal.signal(signal.SIGTERM, _interrupt)
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))

@@ -65,8 +65,10 @@ class Qos:
 
 #: lock-step edges and the recorder: nothing may be lost, so reliable and keep-all
 LOCKSTEP_QOS = Qos("reliable", "volatile", "keep_all", 0)
-TOOLS_QOS = Qos("reliable", "volatile", "keep_last", 100)
-CLOCK_QOS = Qos("best_effort", "volatile", "keep_last", 1)
+#: decimated tool topics: reliable (so the recorder loses none; best-effort readers such as
+#: rclpy's time source still match) and a deep enough history for a slow reader
+TOOLS_QOS = Qos("reliable", "volatile", "keep_last", 1000)
+CLOCK_QOS = TOOLS_QOS
 
 
 @dataclass(frozen=True)

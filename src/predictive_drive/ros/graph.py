@@ -1,0 +1,246 @@
+"""Start the drive graph as child processes, watch it, switch strategies, and end it cleanly.
+
+Each run gets its own ROS domain (a lock file per id keeps parallel runs apart) and discovery on
+localhost only. The children run in their own sessions, so a Ctrl-C reaches only this process, which
+then ends every child by PID: SIGINT (the logger closes its bag), then SIGTERM, then SIGKILL.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+from ..core.scenario import Scenario
+from ..errors import GraphError
+
+__all__ = ["NODES", "isolated_domain", "ros_env", "run_graph", "stop_processes"]
+
+NODES = ("metrics_logger", "torque_controller", "speed_pi", "plant")
+DOMAIN_RANGE = range(1, 101)  # 101..232 left to tests and users
+LOCK_DIR = Path(tempfile.gettempdir()) / "predictive_drive_domains"
+
+
+@contextmanager
+def isolated_domain() -> Iterator[int]:
+    """A ROS_DOMAIN_ID no other predictive_drive run on this machine holds (flock'ed)."""
+    LOCK_DIR.mkdir(exist_ok=True)
+    start = os.getpid() % len(DOMAIN_RANGE)
+    for i in range(len(DOMAIN_RANGE)):
+        d = DOMAIN_RANGE[(start + i) % len(DOMAIN_RANGE)]
+        f = (LOCK_DIR / f"{d}.lock").open("w")
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.close()
+            continue
+        try:
+            yield d
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+            f.close()
+        return
+    raise GraphError("no free ROS domain id: 100 predictive_drive runs at once?")
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["PYTHONUNBUFFERED"] = "1"
+    # the PyPI wheels do not set it; the ament index lives under the venv's share/
+    prefixes = [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    if sys.prefix not in prefixes:
+        prefixes.insert(0, sys.prefix)
+    env["AMENT_PREFIX_PATH"] = os.pathsep.join(prefixes)
+    return env
+
+
+def stop_processes(procs: dict[str, subprocess.Popen[bytes]], *, grace: float = 5.0) -> None:
+    """End every still-running child by PID: SIGINT, then SIGTERM, then SIGKILL, each with a timeout."""
+    for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
+        alive = [p for p in procs.values() if p.poll() is None]
+        if not alive:
+            return
+        for p in alive:
+            try:
+                os.kill(p.pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + wait
+        for p in alive:
+            try:
+                p.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+
+
+def _tail(f: IO[bytes], n: int = 12) -> str:
+    f.flush()
+    f.seek(0)
+    lines = f.read().decode(errors="replace").strip().splitlines()
+    return "\n".join("    " + line for line in lines[-n:])
+
+
+def run_graph(
+    sc: Scenario,
+    text: str,
+    bag: Path,
+    *,
+    composed: bool = False,
+    switches: Sequence[tuple[float, str]] = (),
+    progress: Callable[[int], None] | None = None,
+    peer_timeout: float = 10.0,
+) -> None:
+    """Run ``sc`` through the graph and record it to ``bag``; GraphError names a failed node."""
+    del text  # the logger stores the scenario file itself
+    source = str(Path(sc.source).resolve())
+    shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
+    # node-specific entries beat wildcard ones and later files beat earlier ones, so the command
+    # line's overrides go into a second parameter file with one section per node
+    overrides = {f"/drive/{n}": {"ros__parameters": dict(shared)} for n in NODES}
+    overrides["/drive/torque_controller"]["ros__parameters"]["strategy"] = sc.controller.strategy
+    overrides["/drive/metrics_logger"]["ros__parameters"].update(
+        strategy=sc.controller.strategy, bag=str(bag.resolve()), scenario_file=source
+    )
+    with isolated_domain() as domain, tempfile.TemporaryDirectory() as logs:
+        import yaml
+
+        override_file = Path(logs) / "overrides.yaml"
+        override_file.write_text(yaml.safe_dump(overrides))
+        args = ["--ros-args", "--params-file", source, "--params-file", str(override_file)]
+        env = ros_env(domain)
+        procs: dict[str, subprocess.Popen[bytes]] = {}
+        outs: dict[str, IO[bytes]] = {}
+        # the launcher's own node joins the domain first, so it hears /clock from step 0
+        watcher = _ClockWatcher(domain, sc, switches, progress) if (switches or progress) else None
+        commands = (
+            {"composed": ["predictive_drive.ros.composed", *args]}
+            if composed
+            else {n: [f"predictive_drive.ros.{n}_node", *args] for n in NODES}
+        )
+        try:
+            for name, cmd in commands.items():
+                outs[name] = open(Path(logs) / f"{name}.log", "w+b")  # noqa: SIM115
+                procs[name] = subprocess.Popen(
+                    [sys.executable, "-m", *cmd],
+                    env=env,
+                    stdout=outs[name],
+                    stderr=subprocess.STDOUT,
+                    stdin=subprocess.DEVNULL,
+                    start_new_session=True,
+                )
+            print(
+                f"predictive-drive: graph on ROS_DOMAIN_ID={domain}: "
+                + ", ".join(f"{n} pid {p.pid}" for n, p in procs.items()),
+                file=sys.stderr,
+                flush=True,
+            )
+            _watch(procs, outs, watcher)
+        finally:
+            stop_processes(procs)
+            if watcher is not None:
+                watcher.close()
+            for f in outs.values():
+                f.close()
+
+
+def _watch(
+    procs: dict[str, subprocess.Popen[bytes]],
+    outs: dict[str, IO[bytes]],
+    watcher: _ClockWatcher | None,
+) -> None:
+    """Wait for the children; follow /clock for progress and timed strategy switches."""
+    if watcher is not None and watcher.pending:
+        # discover the controller's parameter services now, so a timed switch goes out at once
+        watcher.client.wait_for_services(timeout_sec=30.0)
+    if True:
+        while True:
+            if watcher is not None:
+                watcher.spin(0.05)
+            else:
+                time.sleep(0.05)
+            codes = {n: p.poll() for n, p in procs.items()}
+            failed = {n: c for n, c in codes.items() if c not in (None, 0)}
+            if failed:
+                name, code = next(iter(failed.items()))
+                how = f"was killed by signal {-code}" if code < 0 else f"exited with status {code}"
+                stop_processes(procs)
+                raise GraphError(
+                    f"node {name} (pid {procs[name].pid}) {how}; the run was stopped and the bag "
+                    f"closed.\n  {name} said:\n{_tail(outs[name])}"
+                )
+            if all(c == 0 for c in codes.values()):
+                if watcher is not None and watcher.switch_errors:
+                    raise GraphError("; ".join(watcher.switch_errors))
+                return
+
+
+class _ClockWatcher:
+    """A small node of the launcher's own: /clock → progress, and parameter-service switches."""
+
+    def __init__(
+        self,
+        domain: int,
+        sc: Scenario,
+        switches: Sequence[tuple[float, str]],
+        progress: Callable[[int], None] | None,
+    ) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.parameter_client import AsyncParameterClient
+        from rosgraph_msgs.msg import Clock
+
+        from ..interface import TOPICS
+        from .common import executor, qos
+
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, domain_id=domain)
+        self.node = rclpy.create_node("launcher", namespace="/drive", context=self.ctx)
+        self.ex = executor(self.ctx)
+        self.ex.add_node(self.node)
+        self.ts = sc.ts
+        self.progress = progress
+        self.pending = sorted(switches)
+        self.switch_errors: list[str] = []
+        self._futures: list[tuple[str, Any]] = []
+        self.client = AsyncParameterClient(self.node, "/drive/torque_controller")
+        self.node.create_subscription(
+            Clock, TOPICS["clock"].name, self.on_clock, qos(TOPICS["clock"].qos)
+        )
+
+    def on_clock(self, msg: Any) -> None:
+        t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        if self.progress is not None:
+            self.progress(round(t / self.ts))
+        while self.pending and self.pending[0][0] <= t:
+            at, name = self.pending.pop(0)
+            from rclpy.parameter import Parameter
+
+            fut = self.client.set_parameters([Parameter("strategy", Parameter.Type.STRING, name)])
+            self._futures.append((f"switch at {at} s to {name}", fut))
+
+    def spin(self, timeout: float) -> None:
+        self.ex.spin_once(timeout_sec=timeout)
+        for what, fut in list(self._futures):
+            if fut.done():
+                self._futures.remove((what, fut))
+                res = fut.result()
+                for r in getattr(res, "results", []):
+                    if not r.successful:
+                        self.switch_errors.append(f"{what} rejected: {r.reason}")
+
+    def close(self) -> None:
+        import rclpy
+
+        self.ex.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)

@@ -1,0 +1,18 @@
+"""`ros2 run predictive_drive plant_node --ros-args --params-file config/<scenario>.yaml`."""
+
+from __future__ import annotations
+
+import sys
+
+from .common import run_main
+from .nodes import PlantNode
+
+__all__ = ["main"]
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_main(PlantNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
