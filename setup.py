@@ -11,8 +11,6 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     description="Model predictive torque control of electric drives on a lock-step ROS 2 graph",
-    long_description=Path(__file__).with_name("README.md").read_text(encoding="utf-8"),
-    long_description_content_type="text/markdown",
     license="Apache-2.0",
     python_requires=">=3.10",
     package_dir={"": "src"},

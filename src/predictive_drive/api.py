@@ -266,6 +266,31 @@ def reproduce(
     return {"scenario": scenario, "engine": engine, "paper": caption, "rows": rows}
 
 
+def graph_rate(engine: str, *, short: float = 0.1, long: float = 1.0) -> dict[str, float]:
+    """Steps/s of a graph engine with recording on, start-up excluded: two runs of different
+    length, rate = Δsteps / Δwall."""
+    import tempfile
+
+    walls = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for d in (short, long):
+            r = run(
+                "im_paper",
+                strategy="db_mptc",
+                duration=d,
+                engine=engine,
+                out=Path(tmp) / f"{engine}_{d}",
+            )
+            walls[d] = (r.steps, r.wall_s)
+    (n0, w0), (n1, w1) = walls[short], walls[long]
+    return {
+        "steps_per_s": (n1 - n0) / (w1 - w0),
+        "startup_s": w0 - n0 * (w1 - w0) / (n1 - n0),
+        "long_run_wall_s": w1,
+        "long_run_steps": n1,
+    }
+
+
 def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str, Any]:
     """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests)."""
     sc, text = prepare("im_paper", strategy="db_mptc")
@@ -296,6 +321,11 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str
             Path(tmp) / "bench",
         )
         out["inprocess_recorded_steps_per_s"] = n / (time.perf_counter() - t0)
+    if ros:
+        for engine, key in (("ros", "ros_steps_per_s"), ("composed", "composed_steps_per_s")):
+            g = graph_rate(engine)
+            out[key] = g["steps_per_s"]
+            out[key.replace("steps_per_s", "startup_s")] = g["startup_s"]
     return out
 
 

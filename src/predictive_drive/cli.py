@@ -140,7 +140,7 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
 
 
 def cmd_bench(a: argparse.Namespace) -> int:
-    d = api.bench(repeats=a.repeats, steps=a.steps)
+    d = api.bench(repeats=a.repeats, steps=a.steps, ros=not a.no_ros)
     if a.json:
         print(api.dumps(d))
         return 0
@@ -153,7 +153,11 @@ def cmd_bench(a: argparse.Namespace) -> int:
     print(f"in-process with MCAP recording: {d['inprocess_recorded_steps_per_s']:,.0f} steps/s")
     for k in ("ros_steps_per_s", "composed_steps_per_s"):
         if k in d:
-            print(f"{k}: {d[k]:,.0f} steps/s ({d[k] / rt:.2f}x real time)")
+            what = "four processes, recording on" if k.startswith("ros") else "one process"
+            print(
+                f"{k} ({what}): {d[k]:,.0f} steps/s ({d[k] / rt:.2f}x real time; start-up "
+                f"{d[k.replace('steps_per_s', 'startup_s')]:.1f} s excluded)"
+            )
     for name, us in d["compute_us_per_step"].items():
         print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")
     return 0
@@ -221,6 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bench", help="throughput figures of this machine")
     b.add_argument("--repeats", type=int, default=5)
     b.add_argument("--steps", type=int, default=20000)
+    b.add_argument("--no-ros", action="store_true", help="skip the graph engines")
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
     pp = sub.add_parser(
