@@ -104,7 +104,7 @@ class InductionPlant:
         segs, self.switches, self._transitions = segments(command[2:8], self.switches)
         ts = self.ts
         t = self.k * ts
-        load = self._load.at(self.k)
+        load = self._load.at(self.k)  # constant over the period
         x = self.x
         volts, coef, integrate, max_sub = (
             self._volts,

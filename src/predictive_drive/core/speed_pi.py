@@ -65,7 +65,8 @@ class SpeedPI:
     def step(self, state: State) -> Reference:
         p = self.params
         k = int(state.k)
-        w_ref = self._speed.at(k)
+        at = self._speed.at
+        w_ref = at(k)
         e = w_ref - state.omega_m
         raw = p.kp * e + self.integral
         lim = p.torque_limit
@@ -77,4 +78,4 @@ class SpeedPI:
             out, saturated = raw, False
         if not saturated:
             self.integral += p.ki * self.ts * e
-        return Reference(float(k + 1), (k + 1) * self.ts, out, p.flux_ref, self._speed.at(k + 1))
+        return Reference(float(k + 1), (k + 1) * self.ts, out, p.flux_ref, at(k + 1))
