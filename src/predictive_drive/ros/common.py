@@ -139,16 +139,12 @@ class DriveNode(Node):
 
     # -- lock-step helpers --------------------------------------------------------------------
     def publisher(self, key: str) -> Any:
-        from std_msgs.msg import Float64MultiArray
-
         t = TOPICS[key]
-        return self.create_publisher(_msg_class(t.type, Float64MultiArray), t.name, qos(t.qos))
+        return self.create_publisher(_msg_class(t.type), t.name, qos(t.qos))
 
     def subscription(self, key: str, callback: Callable[[bytes], None]) -> Any:
         t = TOPICS[key]
-        return self.create_subscription(
-            _msg_class(t.type, None), t.name, callback, qos(t.qos), raw=True
-        )
+        return self.create_subscription(_msg_class(t.type), t.name, callback, qos(t.qos), raw=True)
 
     def wait_matched(self, pub: Any, count: int, what: str) -> None:
         """Block (briefly, in a callback is fine: matching runs in DDS threads) until ``pub`` has
@@ -169,7 +165,7 @@ class DriveNode(Node):
         self.notify()
 
 
-def _msg_class(type_name: str, default: Any) -> Any:
+def _msg_class(type_name: str) -> Any:
     import importlib
 
     pkg, _, name = type_name.split("/")
@@ -180,7 +176,6 @@ def spin_node(
     make: Callable[[], DriveNode],
     *,
     args: list[str] | None = None,
-    extra: Callable[[DriveNode], Callable[[], None]] | None = None,
 ) -> int:
     """Jazzy main pattern around one node; returns the process exit code."""
     rclpy.init(args=args)

@@ -162,26 +162,25 @@ def _watch(
     if watcher is not None and watcher.pending:
         # discover the controller's parameter services now, so a timed switch goes out at once
         watcher.client.wait_for_services(timeout_sec=30.0)
-    if True:
-        while True:
-            if watcher is not None:
-                watcher.spin(0.05)
-            else:
-                time.sleep(0.05)
-            codes = {n: p.poll() for n, p in procs.items()}
-            failed = {n: c for n, c in codes.items() if c not in (None, 0)}
-            if failed:
-                name, code = next(iter(failed.items()))
-                how = f"was killed by signal {-code}" if code < 0 else f"exited with status {code}"
-                stop_processes(procs)
-                raise GraphError(
-                    f"node {name} (pid {procs[name].pid}) {how}; the run was stopped and the bag "
-                    f"closed.\n  {name} said:\n{_tail(outs[name])}"
-                )
-            if all(c == 0 for c in codes.values()):
-                if watcher is not None and watcher.switch_errors:
-                    raise GraphError("; ".join(watcher.switch_errors))
-                return
+    while True:
+        if watcher is not None:
+            watcher.spin(0.05)
+        else:
+            time.sleep(0.05)
+        codes = {n: p.poll() for n, p in procs.items()}
+        failed = {n: c for n, c in codes.items() if c not in (None, 0)}
+        if failed:
+            name, code = next(iter(failed.items()))
+            how = f"was killed by signal {-code}" if code < 0 else f"exited with status {code}"
+            stop_processes(procs)
+            raise GraphError(
+                f"node {name} (pid {procs[name].pid}) {how}; the run was stopped and the bag "
+                f"closed.\n  {name} said:\n{_tail(outs[name])}"
+            )
+        if all(c == 0 for c in codes.values()):
+            if watcher is not None and watcher.switch_errors:
+                raise GraphError("; ".join(watcher.switch_errors))
+            return
 
 
 class _ClockWatcher:
