@@ -161,9 +161,9 @@ def run(
     else:
         from .ros.graph import run_graph  # rclpy only when a ROS engine is asked for
 
-        run_graph(sc, text, bag, composed=(engine == "composed"), switches=switches, progress=cb)
+        run_graph(sc, bag, composed=(engine == "composed"), switches=switches, progress=cb)
     wall = time.perf_counter() - t0
-    metrics, trace_steps = _evaluate(bag)
+    metrics, trace_steps, _ = evaluate(bag)
     return RunResult(sc.name, sc.controller.strategy, engine, trace_steps, bag, wall, metrics)
 
 
@@ -181,11 +181,6 @@ def evaluate(bag: str | Path) -> tuple[Metrics, int, BagInfo]:
     trace, info = read_bag(bag)
     start, end = metrics_window(scenario_of(info.info, info.path))
     return compute_metrics(trace, t_start=start, t_end=end), trace.steps, info
-
-
-def _evaluate(bag: Path) -> tuple[Metrics, int]:
-    m, steps, _ = evaluate(bag)
-    return m, steps
 
 
 def scenario_of(info: dict[str, str], where: Path) -> Scenario:

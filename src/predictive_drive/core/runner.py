@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 from .control import InductionController, strategy_names
 from .plant import InductionPlant
-from .scenario import Scenario
+from .scenario import PlantParams, Scenario
 from .speed_pi import SpeedPI
 from .trace import Trace, TraceBuilder
 
@@ -36,16 +36,16 @@ def with_strategy(scenario: Scenario, strategy: str | None) -> Scenario:
     return dataclasses.replace(scenario, controller=ctrl)
 
 
-def build_plant(scenario: Scenario) -> InductionPlant:
-    p = scenario.plant
+def build_plant(p: PlantParams, *, ts: float) -> InductionPlant:
+    """The plant of a scenario's plant section (shared by the in-process engine and plant_node)."""
     return InductionPlant(
-        p.motor, ts=scenario.ts, u_dc=p.u_dc, load=p.load_profile(), max_substep=p.max_substep
+        p.motor, ts=ts, u_dc=p.u_dc, load=p.load_profile(), max_substep=p.max_substep
     )
 
 
 def build(scenario: Scenario) -> Components:
     return Components(
-        plant=build_plant(scenario),
+        plant=build_plant(scenario.plant, ts=scenario.ts),
         speed_pi=SpeedPI(scenario.speed_pi, ts=scenario.ts),
         controller=InductionController(scenario.controller, ts=scenario.ts),
     )

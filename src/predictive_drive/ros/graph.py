@@ -92,7 +92,6 @@ def _tail(f: IO[bytes], n: int = 12) -> str:
 
 def run_graph(
     sc: Scenario,
-    text: str,
     bag: Path,
     *,
     composed: bool = False,
@@ -101,7 +100,6 @@ def run_graph(
     peer_timeout: float = 10.0,
 ) -> None:
     """Run ``sc`` through the graph and record it to ``bag``; GraphError names a failed node."""
-    del text  # the logger stores the scenario file itself
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
     # node-specific entries beat wildcard ones and later files beat earlier ones, so the command

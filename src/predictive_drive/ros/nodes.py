@@ -19,7 +19,7 @@ from rclpy.duration import Duration
 from ..bag import BagWriter
 from ..config import resolve_scenario_path
 from ..core.control import InductionController, strategy_names
-from ..core.runner import with_strategy
+from ..core.runner import build_plant
 from ..core.signals import Command, Reference, State
 from ..core.speed_pi import SpeedPI
 from ..interface import CODECS
@@ -69,17 +69,7 @@ class PlantNode(_Watched):
         super().__init__("plant", **kw)
         run, params = self.load_params()
         self.n = run.steps
-        from ..core.plant import InductionPlant
-        from ..core.scenario import PlantParams
-
-        assert isinstance(params, PlantParams)
-        self.plant = InductionPlant(
-            params.motor,
-            ts=run.ts,
-            u_dc=params.u_dc,
-            load=params.load_profile(),
-            max_substep=params.max_substep,
-        )
+        self.plant = build_plant(params, ts=run.ts)
         self._every = tool_every(run.ts)
         self.pub_state = self.publisher("state")
         self.pub_clock = self.publisher("clock")
@@ -246,7 +236,6 @@ class MetricsLoggerNode(_Watched):
         from ..api import bag_info, default_bag_dir, prepare
 
         sc, _ = prepare(path, strategy=extra["strategy"] or None, duration=run.duration)
-        sc = with_strategy(sc, sc.controller.strategy)
         self.n = run.steps
         out = Path(extra["bag"]) if extra["bag"] else default_bag_dir(sc)
         self.writer = BagWriter(out, info=bag_info(sc, text, "ros"))
