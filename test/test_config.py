@@ -7,14 +7,15 @@ import pytest
 import yaml
 
 from predictive_drive.config import (
+    MACHINE_SECTIONS,
     NAMESPACE,
-    NODE_SECTIONS,
     config_dir,
     load_scenario,
     scenario_names,
     section_fields,
 )
-from predictive_drive.core.motors import InductionMotor
+from predictive_drive.core.control import Machine
+from predictive_drive.core.motors import PMSM, InductionMotor
 from predictive_drive.core.scenario import RunParams
 from predictive_drive.errors import ConfigError
 
@@ -23,7 +24,8 @@ from predictive_drive.errors import ConfigError
 def test_yaml_keys_equal_dataclass_fields(name):
     doc = yaml.safe_load((config_dir() / f"{name}.yaml").read_text())
     assert set(doc["/**"]["ros__parameters"]) == set(section_fields(RunParams))
-    for node, (cls, nested) in NODE_SECTIONS.items():
+    machine = Machine(doc["/**"]["ros__parameters"]["machine"])
+    for node, (cls, nested) in MACHINE_SECTIONS[machine].items():
         params = doc[f"{NAMESPACE}/{node}"]["ros__parameters"]
         assert set(params) == set(section_fields(cls)), node
         for key, sub in nested.items():
@@ -40,6 +42,70 @@ def test_im_paper_has_the_paper_values():
     assert sc.speed_pi.kp == 0.06 and sc.speed_pi.ki == 0.15 and sc.speed_pi.torque_limit == 7.5
     assert sc.controller.lambda_psi == 17.5 and sc.speed_pi.flux_ref == 0.71
     assert sc.plant.load_values == (3.0, -3.0, 3.0) and sc.plant.load_times == (0.0, 1.5, 4.5)
+
+
+def test_pmsm_scenarios_have_the_paper_values():
+    sp = load_scenario("spmsm_analysis")
+    m = sp.plant.motor
+    assert isinstance(m, PMSM) and m.surface
+    assert (m.r_s, m.l_d, m.psi_f, m.p, m.rated_torque, m.rated_speed_rpm) == (
+        0.2,
+        0.0085,
+        0.175,
+        4,
+        12.0,
+        750.0,
+    )
+    assert (sp.ts, sp.run.duration, sp.plant.u_dc, sp.speed_pi.flux_ref) == (5e-5, 4.0, 312.0, 0.3)
+    assert (sp.speed_pi.kp, sp.speed_pi.ki, sp.speed_pi.torque_limit) == (5.0, 10.0, 30.0)
+    assert sp.plant.load_values == (10.0, -10.0, 10.0) and sp.plant.load_times == (0.0, 1.0, 3.0)
+    assert sp.speed_pi.speed_values_rpm == (500.0, -500.0) and sp.speed_pi.speed_times == (0, 2)
+    assert sp.controller.torque_threshold == pytest.approx(0.05 * m.rated_torque)
+    ip = load_scenario("ipmsm_validation")
+    m = ip.plant.motor
+    assert (m.r_s, m.l_d, m.l_q, m.psi_f, m.p, m.rated_torque) == (
+        0.25,
+        0.0033,
+        0.0073,
+        0.2264,
+        3,
+        15.0,
+    )
+    assert ip.plant.load_values == (15.0, -15.0, 15.0) and ip.plant.load_times == (0, 0.5, 1.5)
+    assert ip.speed_pi.speed_values_rpm == (1000.0, -1000.0) and ip.run.duration == 2.0
+    assert ip.controller.torque_threshold == 0.75 and ip.controller.t_floor == 0.15
+
+
+def test_pmsm_threshold_defaults_to_a_share_of_rated_torque(tmp_path):
+    text = (config_dir() / "ipmsm_short.yaml").read_text()
+    text = text.replace("    torque_threshold: 0.75", "    # no threshold: 5 % of rated")
+    text = text.replace("    t_floor: 0.15", "    # no floor: 1 % of rated")
+    p = tmp_path / "x.yaml"
+    p.write_text(text)
+    c = load_scenario(p).controller
+    assert c.torque_threshold == pytest.approx(0.75) and c.t_floor == pytest.approx(0.15)
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ("strategy: mptc ", "strategy: db_mptc ", ["db_mptc", "simplified3", "pmsm"]),
+        ("torque_threshold: 0.75", "torque_threshold: -1.0", ["torque_threshold", ">= 0"]),
+        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["l_q", "positive"]),
+        ("machine: pmsm", "machine: dc", ["machine", "induction", "pmsm"]),
+        ("      rated_torque: 15.0\n", "", ["rated_torque", "missing"]),
+    ],
+    ids=["im-strategy-on-pmsm", "negative-threshold", "negative-lq", "machine", "no-rated"],
+)
+def test_pmsm_config_errors_name_the_key(tmp_path, old, new, words):
+    text = (config_dir() / "ipmsm_short.yaml").read_text()
+    assert old in text
+    p = tmp_path / "bad.yaml"
+    p.write_text(text.replace(old, new, 1))
+    with pytest.raises(ConfigError) as e:
+        load_scenario(p)
+    for w in [str(p), *words]:
+        assert w in str(e.value)
 
 
 def _edit(tmp_path: Path, edit) -> Path:

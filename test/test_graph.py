@@ -190,3 +190,62 @@ def test_bad_scenario_file_fails_before_starting_anything(tmp_path):
 
 def test_graph_error_type_is_exported():
     assert issubclass(GraphError, Exception)
+
+
+def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path):
+    """The PMSM strategies switch through the parameter service like the IM ones; replaying the
+    recorded switch step in-process gives the same sequences bit for bit."""
+    from predictive_drive.core.runner import run_inprocess
+
+    r = api.run(
+        "ipmsm_short",
+        duration=0.3,
+        engine="ros",
+        strategy="mptc",
+        switches=[(0.02, "simplified3")],
+        out=tmp_path / "pmsm",
+    )
+    tr, info = read_bag(r.bag)
+    assert info.complete and tr.steps == 6000
+    names = tr.strategy_names
+    assert names == ("mptc", "simplified1", "simplified2", "simplified3")
+    s = tr.col("command", "strategy").astype(int)
+    first = int(np.flatnonzero(s == 3)[0])
+    assert first >= 400 and np.all(s[first:] == 3) and np.all(s[:first] == 0)
+    cal = tr.col("command", "cal")
+    assert np.all(cal[:first] == 7) and cal[first:].mean() < 3
+    sc, _ = api.prepare("ipmsm_short", strategy="mptc")
+    ref = run_inprocess(sc, switches=[(first, "simplified3")])
+    np.testing.assert_array_equal(tr.state, ref.state)
+    np.testing.assert_array_equal(tr.command[:, :-1], ref.command[:, :-1])
+
+
+def test_controller_node_rejects_a_strategy_of_another_machine():
+    """In-process node with its own context: db_mptc is an IM strategy, so a PMSM controller
+    refuses it with the valid names and keeps running what it runs."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+
+    from predictive_drive.config import resolve_scenario_path
+    from predictive_drive.ros.nodes import TorqueControllerNode
+
+    ctx = Context()
+    path = resolve_scenario_path("ipmsm_short")
+    rclpy.init(context=ctx, args=["--ros-args", "--params-file", str(path)])
+    try:
+        node = TorqueControllerNode(context=ctx)
+        try:
+            res = node.on_set_parameters([Parameter("strategy", Parameter.Type.STRING, "db_mptc")])
+            assert not res.successful
+            assert "machine 'pmsm'" in res.reason
+            assert "valid: mptc, simplified1, simplified2, simplified3" in res.reason
+            assert node.ctrl.strategy.name == "mptc"
+            ok = node.on_set_parameters(
+                [Parameter("strategy", Parameter.Type.STRING, "simplified2")]
+            )
+            assert ok.successful and node.ctrl.strategy.name == "simplified2"
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

@@ -67,6 +67,15 @@ def _print_metrics(d: dict[str, Any]) -> None:
         ("speed_RMSE", f"{m['speed_rmse']:.3f} rad/s", "omega_m vs omega_m*"),
         ("compute", f"{m['compute_ns_median'] / 1e3:.2f} µs/step", "median, control law only"),
     ]
+    if m.get("thd") is not None and m["thd"] == m["thd"]:  # NaN: no THD window
+        rows.append(
+            (
+                "THD_a",
+                f"{100 * m['thd']:.2f} %",
+                f"phase-a distortion, {m['thd_cycles']} cycles of "
+                f"{m['thd_fundamental_hz']:.1f} Hz (harmonics alone {100 * m['thd_harmonics']:.2f} %)",
+            )
+        )
     for name, value, how in rows:
         print(f"  {name:<11}{value:>16}   {how}")
     util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m["utilization"]))
@@ -108,34 +117,107 @@ def cmd_report(a: argparse.Namespace) -> int:
     return 0
 
 
+#: per reproduced table: (title, key, scale, format) — each column shows ours and the paper's
+_COLUMNS: dict[str, list[tuple[str, str, float, str]]] = {
+    "im_paper": [
+        ("T_RMSE N·m", "t_rmse", 1.0, ".4f"),
+        ("psi_RMSE Wb", "psi_rmse", 1.0, ".5f"),
+        ("deadbeat %", "deadbeat_share", 100.0, ".2f"),
+        ("f_ave kHz", "f_ave_hz", 1e-3, ".3f"),
+        ("Cal_ave", "cal_ave", 1.0, ".2f"),
+        ("µs/step", "compute_us_per_step", 1.0, ".2f"),
+    ],
+    "spmsm_analysis": [
+        ("T_rip N·m", "t_rmse", 1.0, ".4f"),
+        ("psi_rip Wb", "psi_rmse", 1.0, ".4f"),
+        ("Cal_ave", "cal_ave", 1.0, ".2f"),
+        ("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
+        ("V0 %", "zero_share", 100.0, ".1f"),
+    ],
+    "ipmsm_validation": [
+        ("T_rip N·m", "t_rmse", 1.0, ".4f"),
+        ("psi_rip Wb", "psi_rmse", 1.0, ".4f"),
+        ("THD %", "thd", 100.0, ".2f"),
+        ("(harm.)", "thd_harmonics", 100.0, ".2f"),
+        ("Cal_ave", "cal_ave", 1.0, ".2f"),
+        ("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
+        ("V0 %", "zero_share", 100.0, ".2f"),
+        ("compute ratio", "compute_ratio", 1.0, ".3f"),
+        ("µs/step", "replay_ns_per_step", 1e-3, ".2f"),
+    ],
+}
+
+
+def _row_label(r: dict[str, Any]) -> str:
+    if "torque_threshold" in r:
+        return f"{r['strategy']} ±{r['torque_threshold']:g}"
+    return r["strategy"]
+
+
 def cmd_reproduce(a: argparse.Namespace) -> int:
-    d = api.reproduce(a.scenario, engine=a.engine)
+    d = api.reproduce(a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration)
     if a.json:
         print(api.dumps(d))
         return 0
+    cols = _COLUMNS[d["scenario"]]
     print(f"{d['scenario']} vs {d['paper']}  (engine {d['engine']})")
-    print(
-        f"{'strategy':<9} {'T_RMSE N·m':>19} {'psi_RMSE Wb':>21} {'deadbeat %':>17} "
-        f"{'f_ave kHz':>10} {'Cal_ave':>8} {'µs/step':>8}"
-    )
-    print(f"{'':<9} {'ours':>9} {'paper':>9} {'ours':>10} {'paper':>10} {'ours':>8} {'paper':>8}")
+    if d["duration"] is not None:
+        print(f"NOTE: runs shortened to {d['duration']:g} s; not comparable with the paper")
+    width = max(len(_row_label(r)) for r in d["rows"]) + 1
+    head = f"{'':<{width}}" + "".join(f" {t:>17}" for t, *_ in cols)
+    sub = f"{'':<{width}}" + "".join(f" {'ours':>8} {'paper':>8}" for _ in cols)
+    print(head)
+    print(sub)
     for r in d["rows"]:
-        p = r["paper"]
+        line = f"{_row_label(r):<{width}}"
+        for _, key, scale, fmt in cols:
+            ours = r.get(key)
+            paper = r["paper"].get(key)
+            line += f" {format(ours * scale, fmt) if ours is not None else '-':>8}"
+            line += f" {format(paper * scale, fmt) if paper is not None else '-':>8}"
+        print(line)
+    print(f"How computed: {d['how']}")
+    return 0
+
+
+def cmd_analyze(a: argparse.Namespace) -> int:
+    d = api.analyze(a.bag, threshold=a.threshold, write_tables=a.write_tables)
+    if a.json:
+        print(api.dumps(d))
+        return 0
+    print(
+        f"{d['bag']}: {d['scenario']} / {d['strategy']}, {d['steps']} steps over "
+        f"{d['window'][0]:g}-{d['window'][1]:g} s, threshold {d['threshold']:g} N·m"
+    )
+    print("\nZero-vector use by torque-error band (paper 001 Table 1; the paper's from a mptc run)")
+    print(f"  {'|dT| <= N·m':>12} {'N':>7} {'N_V0':>7} {'eta_V0':>7}   {'paper N':>8} {'N_V0':>7}")
+    for b in d["bands"]:
+        p = b["paper"] or ("", "")
+        band = "all" if b["band"] is None else f"{b['band']:.1f}"
         print(
-            f"{r['strategy']:<9} {r['t_rmse']:>9.4f} {p['t_rmse']:>9.4f} {r['psi_rmse']:>10.5f} "
-            f"{p['psi_rmse']:>10.4f} {100 * r['deadbeat_share']:>8.2f} "
-            f"{100 * p['deadbeat_share']:>8.2f} {r['f_ave_hz'] / 1e3:>10.3f} {r['cal_ave']:>8.2f} "
-            f"{r['compute_us_per_step']:>8.2f}"
+            f"  {band:>12} {b['n']:>7} {b['n_v0']:>7} {100 * b['eta_v0']:>6.2f}%   "
+            f"{p[0]:>8} {p[1]:>7}"
         )
-    print(
-        "How computed: true plant torque/flux at each sample k against the reference in force at k "
-        "over 0.05-6 s; f_ave counts two device transitions per leg change (the paper gives no "
-        "f_ave); compute = median wall time of the control law per step on this machine."
-    )
-    print(
-        "The paper's MPTC T_RMSE (0.2582) was not reproduced under any reading tried; an "
-        "independent implementation of the same SPEC got 0.230."
-    )
+    for table, nsec in (("six_sector", 6), ("twelve_sector", 12)):
+        for cls, shares in d["utilization"][table].items():
+            n = d["class_steps"][table][cls]
+            what = "Tables 3-4" if nsec == 6 else "Tables 5-8"
+            print(f"\nUtilization %, {nsec} sectors, {cls} (paper 001 {what}); steps per sector:")
+            print("       " + "".join(f"{'th' + str(s + 1):>7}" for s in range(nsec)))
+            print("  N    " + "".join(f"{x:>7}" for x in n))
+            for v in range(7):
+                print(f"  V{v}   " + "".join(f"{100 * shares[s][v]:>7.1f}" for s in range(nsec)))
+            sets = d["derived"][table][cls]
+            print("  sets " + " ".join("{" + ",".join(f"V{v}" for v in c) + "}" for c in sets))
+    print(f"\nRule: {d['rule']}")
+    if d["matches_tables"]:
+        print("Derived sets = the tables simplified2/simplified3 use (all 60 classes).")
+    else:
+        print(f"Derived sets differ from the tables in use in {len(d['differences'])} classes:")
+        for line in d["differences"]:
+            print(f"  {line}")
+    if "written" in d:
+        print(f"Wrote {d['written']}")
     return 0
 
 
@@ -219,8 +301,32 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("reproduce", help="a paper's table side by side with our figures")
     rp.add_argument("scenario", choices=sorted(api.PAPER_TABLES))
     rp.add_argument("--engine", default="inprocess", choices=api.ENGINES)
+    rp.add_argument(
+        "--repeats", type=int, default=5, help="timing repeats for compute ratios (median)"
+    )
+    rp.add_argument(
+        "--duration", type=float, help="shorten every run to this many simulated seconds"
+    )
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
+
+    an = sub.add_parser(
+        "analyze",
+        help="vector utilization of a recording (paper 001 Tables 1, 3-8) and the candidate sets "
+        "it derives",
+    )
+    an.add_argument("bag", help="bag directory (or its .mcap file)")
+    an.add_argument(
+        "--threshold", type=float, help="torque threshold, N·m (default: the recorded scenario's)"
+    )
+    an.add_argument(
+        "--write-tables",
+        metavar="PATH",
+        help="write the derived candidate tables as JSON (the format of "
+        "core/candidate_tables.json, which simplified2/simplified3 use)",
+    )
+    an.add_argument("--json", action="store_true")
+    an.set_defaults(func=cmd_analyze)
 
     b = sub.add_parser("bench", help="throughput figures of this machine")
     b.add_argument("--repeats", type=int, default=5)

@@ -14,14 +14,15 @@ from typing import Any
 
 import yaml
 
-from .core.control import InductionControllerParams
-from .core.motors import InductionMotor
+from .core.control import InductionControllerParams, Machine, PMSMControllerParams
+from .core.motors import PMSM, InductionMotor
 from .core.scenario import LoggerParams, PlantParams, RunParams, Scenario
 from .core.speed_pi import SpeedPIParams
 from .errors import ConfigError
 
 __all__ = [
     "NAMESPACE",
+    "MACHINE_SECTIONS",
     "NODE_SECTIONS",
     "config_dir",
     "flatten",
@@ -34,13 +35,25 @@ __all__ = [
 
 NAMESPACE = "/drive"
 SHARED = "/**"
-#: node name → (dataclass built from its section, nested dataclasses by key)
-NODE_SECTIONS: dict[str, tuple[type, dict[str, type]]] = {
-    "plant": (PlantParams, {"motor": InductionMotor}),
-    "speed_pi": (SpeedPIParams, {}),
-    "torque_controller": (InductionControllerParams, {"motor": InductionMotor}),
-    "metrics_logger": (LoggerParams, {}),
+Sections = dict[str, tuple[type, dict[str, type]]]
+
+
+def _sections(motor: type, controller: type) -> Sections:
+    return {
+        "plant": (PlantParams, {"motor": motor}),
+        "speed_pi": (SpeedPIParams, {}),
+        "torque_controller": (controller, {"motor": motor}),
+        "metrics_logger": (LoggerParams, {}),
+    }
+
+
+#: machine → node name → (dataclass built from its section, nested dataclasses by key)
+MACHINE_SECTIONS: dict[Machine, Sections] = {
+    Machine.INDUCTION: _sections(InductionMotor, InductionControllerParams),
+    Machine.PMSM: _sections(PMSM, PMSMControllerParams),
 }
+#: the node sections every scenario file has (their classes depend on the machine)
+NODE_SECTIONS = tuple(MACHINE_SECTIONS[Machine.INDUCTION])
 
 
 def config_dir() -> Path:
@@ -164,7 +177,7 @@ def load_scenario_text(text: str, path: str | Path) -> Scenario:
         )
     run = _build(RunParams, _params(doc, SHARED, path), {}, f"{path}: {SHARED}")
     built = {}
-    for node, (cls, nested) in NODE_SECTIONS.items():
+    for node, (cls, nested) in MACHINE_SECTIONS[Machine(run.machine)].items():
         key = f"{NAMESPACE}/{node}"
         built[node] = _build(cls, _params(doc, key, path), nested, f"{path}: {key}")
     return Scenario(

@@ -9,28 +9,30 @@ maps machine type → strategy name → class.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass
-from enum import StrEnum
-from typing import NamedTuple, Protocol
 
 from ..errors import ConfigError
-from .inverter import active_then_zero, vector_voltages
+from .decision import Decision, Machine, PredictiveController, Strategy, instantiate
 from .motors import InductionCoefficients, InductionMotor
-from .signals import Command, Reference, State
+from .pmsm_control import PMSM_STRATEGIES, PMSMController, PMSMControllerParams, PMSMPrediction
+from .signals import Reference, State
 
 __all__ = [
     "A0_FORMS",
     "DBMPTC",
     "MPTC",
     "MPTCDB",
+    "PMSMController",
+    "PMSMControllerParams",
+    "PMSMPrediction",
     "STRATEGIES",
     "Decision",
     "IMPrediction",
     "InductionController",
     "InductionControllerParams",
     "Machine",
+    "PredictiveController",
     "Strategy",
     "make_strategy",
     "strategy_names",
@@ -38,21 +40,11 @@ __all__ = [
 
 INF = math.inf
 NAN = math.nan
+TWO_PI = 2.0 * math.pi
 
 #: how a_0 of the torque derivative is formed: ``derived`` (correct, default) or ``paper_printed``
 #: (paper 000 eq 10 as printed, wrong sign on the ω_r·Re(conj(ψ_s)·i_s) term; for reproduction only)
 A0_FORMS = ("derived", "paper_printed")
-
-
-class Machine(StrEnum):
-    INDUCTION = "induction"
-
-
-class Decision(NamedTuple):
-    vector: int  #: 0..6
-    fraction: float  #: share of Ts the vector is applied, 0..1 (rest: zero vector)
-    t_u: float  #: raw deadbeat time, s (NaN if none was computed)
-    cal: int  #: predictions evaluated
 
 
 class IMPrediction:
@@ -114,12 +106,6 @@ class IMPrediction:
         if au == 0.0:
             return math.copysign(INF, num) if num else INF
         return num / au
-
-
-class Strategy(Protocol):
-    name: str
-
-    def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision: ...
 
 
 class MPTC:
@@ -198,8 +184,12 @@ def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> 
     return best_n
 
 
+IM_STRATEGIES: Mapping[str, type] = {"mptc": MPTC, "mptc_db": MPTCDB, "db_mptc": DBMPTC}
+
+#: machine → strategy name → class; registry order is the ``strategy`` index in commands
 STRATEGIES: Mapping[Machine, Mapping[str, type]] = {
-    Machine.INDUCTION: {"mptc": MPTC, "mptc_db": MPTCDB, "db_mptc": DBMPTC},
+    Machine.INDUCTION: IM_STRATEGIES,
+    Machine.PMSM: PMSM_STRATEGIES,
 }
 
 
@@ -215,13 +205,7 @@ def make_strategy(machine: Machine | str, name: str) -> Strategy:
         raise ValueError(
             f"unknown machine {machine!r}; valid: {', '.join(x.value for x in Machine)}"
         ) from None
-    registry = STRATEGIES[m]
-    if name not in registry:
-        raise ValueError(
-            f"unknown strategy {name!r} for machine {m.value!r}; valid: {', '.join(registry)}"
-        )
-    strategy: Strategy = registry[name]()
-    return strategy
+    return instantiate(m, STRATEGIES[m], name)
 
 
 @dataclass(frozen=True)
@@ -241,10 +225,10 @@ class InductionControllerParams:
     a0_form: str = "derived"
 
     def __post_init__(self) -> None:
-        if self.strategy not in STRATEGIES[Machine.INDUCTION]:
+        if self.strategy not in IM_STRATEGIES:
             raise ConfigError(
                 f"torque_controller.strategy: unknown strategy {self.strategy!r} for machine "
-                f"'induction'; valid: {', '.join(STRATEGIES[Machine.INDUCTION])}"
+                f"'induction'; valid: {', '.join(IM_STRATEGIES)}"
             )
         if self.a0_form not in A0_FORMS:
             raise ConfigError(
@@ -256,63 +240,44 @@ class InductionControllerParams:
                 raise ConfigError(f"torque_controller.{name} must be a number >= 0, got {v!r}")
 
 
-class InductionController:
-    """Predictive torque controller for the IM: ``step(state k, reference k) -> command k``."""
+class InductionController(PredictiveController):
+    """Predictive torque controller for the IM: ``step(state k, reference k) -> command k``.
+
+    Estimates the stator flux by integrating ψ̂(k+1) = ψ̂(k) + Ts(u(k) - R_s i(k)) with the voltage
+    it actually applied (SPEC §2.5); soft start at start-up only (SPEC §3.2).
+    """
 
     machine = Machine.INDUCTION
+    strategies = IM_STRATEGIES
 
     def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
         self.params = params
-        self.ts = ts
         c = InductionCoefficients.of(params.motor)
         self._coef = c
         self._pred = IMPrediction(c, ts, params.lambda_psi, params.a0_form == "paper_printed")
-        self._names = strategy_names(self.machine)
-        self.strategy: Strategy = make_strategy(self.machine, params.strategy)
+        super().__init__(params.strategy, ts=ts)
         self.psi_hat = 0j
         self.soft_start = params.soft_start_flux > 0
-        self.switches = (0, 0, 0)
-        self._u_dc = NAN
-        self._volts: tuple[complex, ...] = ()
 
-    def set_strategy(self, name: str) -> None:
-        """Switch the control law; takes effect at the next step. ValueError if unknown."""
-        self.strategy = make_strategy(self.machine, name)
-
-    @property
-    def strategy_index(self) -> int:
-        return self._names.index(self.strategy.name)
-
-    def step(self, state: State, ref: Reference) -> Command:
-        t0 = time.perf_counter_ns()
-        p = self.params
-        i = complex(state.i_alpha, state.i_beta)
+    def _observe(self, state: State) -> None:
         psi = self.psi_hat
-        if state.u_dc != self._u_dc:
-            self._u_dc = state.u_dc
-            self._volts = vector_voltages(state.u_dc)
-        if self.soft_start and abs(psi) >= p.soft_start_flux:
+        mag = abs(psi)
+        if self.soft_start and mag >= self.params.soft_start_flux:
             self.soft_start = False  # latched off for good (SPEC §3.2)
+        self.est_flux = mag
+        self.est_flux_angle = math.atan2(psi.imag, psi.real) % TWO_PI
+
+    def _decide(self, state: State, ref: Reference) -> Decision:
+        # the IM's free response (i_free, ψ_free, a_0) is the prediction model: part of the law
+        i = complex(state.i_alpha, state.i_beta)
         m = self._pred
-        m.prepare(i, psi, state.omega_m, self._volts)
+        m.prepare(i, self.psi_hat, state.omega_m, self._volts)
+        self.est_torque = m.te
         if self.soft_start:
-            d = Decision(0 if abs(i) > p.soft_start_current else 1, 1.0, NAN, 0)
-        else:
-            d = self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
-        elapsed = time.perf_counter_ns() - t0
-        pulses, self.switches = active_then_zero(d.vector, d.fraction, self.switches)
+            return Decision(0 if abs(i) > self.params.soft_start_current else 1, 1.0, NAN, 0)
+        return self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
+
+    def _applied(self, d: Decision, state: State) -> None:
+        i = complex(state.i_alpha, state.i_beta)
         u_avg = d.fraction * self._volts[d.vector]
-        self.psi_hat = psi + self.ts * (u_avg - self._coef.r_s * i)
-        return Command(
-            state.k,
-            state.t,
-            *pulses,
-            float(self.strategy_index),
-            float(d.vector),
-            d.fraction,
-            d.t_u,
-            float(d.cal),
-            m.te,
-            abs(psi),
-            float(elapsed),
-        )
+        self.psi_hat = self.psi_hat + self.ts * (u_avg - self._coef.r_s * i)

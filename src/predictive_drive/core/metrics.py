@@ -9,7 +9,7 @@ import numpy as np
 
 from .trace import Trace
 
-__all__ = ["Metrics", "compute_metrics", "step_window"]
+__all__ = ["Metrics", "Spectrum", "compute_metrics", "phase_a_spectrum", "step_window"]
 
 
 @dataclass(frozen=True)
@@ -20,7 +20,10 @@ class Metrics:
     force at step k. psi_rmse: same for |ψ_s| against ψ*, Wb. f_ave_hz: device transitions / (6·t),
     two transitions per leg change. cal_ave: mean predictions per step. utilization: share of steps
     choosing V0..V6. deadbeat_share: share of steps with 0 < t_u < Ts. compute_ns_*: control law only.
-    speed_rmse: ω_m against ω_m*, rad/s.
+    speed_rmse: ω_m against ω_m*, rad/s. thd: phase-a current distortion over ``thd_cycles`` whole
+    electrical cycles of the THD window — every spectral line up to Nyquist but DC and the
+    fundamental (at ``thd_fundamental_hz``) — and thd_harmonics the integer harmonics alone (see
+    :class:`Spectrum`); NaN without a window.
     """
 
     t_start: float
@@ -36,6 +39,10 @@ class Metrics:
     compute_ns_median: float
     speed_rmse: float
     compute_ns_median_by_strategy: dict[str, float]
+    thd: float = math.nan
+    thd_harmonics: float = math.nan
+    thd_cycles: int = 0
+    thd_fundamental_hz: float = math.nan
 
     def as_dict(self) -> dict[str, object]:
         d = asdict(self)
@@ -55,7 +62,68 @@ def step_window(trace: Trace, t_start: float, t_end: float) -> tuple[int, int]:
     return k0, k1
 
 
-def compute_metrics(trace: Trace, *, t_start: float = 0.0, t_end: float = math.inf) -> Metrics:
+@dataclass(frozen=True)
+class Spectrum:
+    """One-sided amplitude spectrum of the phase-a current over whole electrical cycles.
+
+    ``amplitude[b]`` is the peak amplitude (A) at ``b / period`` Hz: bin ``cycles`` is the
+    fundamental, bin ``h · cycles`` harmonic h. ``thd`` = sqrt(Σ A_b²) / A_1 over every bin up to
+    the Nyquist frequency except DC and the fundamental: FCS control switches irregularly and
+    spreads its ripple over all frequencies, not only the harmonics, so this is the RMS of the
+    current's distortion over the fundamental's. ``thd_harmonics`` counts the integer harmonics
+    h ≥ 2 alone (the textbook definition; lower for FCS control).
+    """
+
+    t_start: float
+    period: float  #: analysed length, s
+    cycles: int
+    amplitude: np.ndarray
+
+    @property
+    def fundamental_hz(self) -> float:
+        return self.cycles / self.period
+
+    @property
+    def thd(self) -> float:
+        a = self.amplitude.copy()
+        fund = a[self.cycles]
+        a[0] = 0.0
+        a[self.cycles] = 0.0
+        return float(np.sqrt(np.sum(a**2)) / fund)
+
+    @property
+    def thd_harmonics(self) -> float:
+        a = self.amplitude
+        return float(np.sqrt(np.sum(a[2 * self.cycles :: self.cycles] ** 2)) / a[self.cycles])
+
+
+def phase_a_spectrum(trace: Trace, t_start: float, t_end: float) -> Spectrum:
+    """Spectrum of i_a (= i_α, amplitude-invariant Clarke) over the whole electrical cycles that fit
+    in [t_start, t_end): the cycles are counted on the unwrapped rotor angle θ_e, so the window
+    holds an integer number of fundamental periods (no leakage at steady speed)."""
+    k0, k1 = step_window(trace, t_start, t_end)
+    theta = np.unwrap(trace.col("state", "theta_e")[k0 : k1 + 1])
+    turned = np.abs(theta - theta[0])
+    cycles = int(turned[-1] // (2.0 * math.pi))
+    if cycles < 1:
+        raise ValueError(
+            f"THD window [{t_start}, {t_end}) s holds no whole electrical cycle "
+            f"({turned[-1] / (2 * math.pi):.2f} turns)"
+        )
+    n = int(np.searchsorted(turned, cycles * 2.0 * math.pi))  # first sample of the next cycle
+    i_a = trace.col("state", "i_alpha")[k0 : k0 + n]
+    amp = np.abs(np.fft.rfft(i_a)) * (2.0 / n)
+    amp[0] /= 2.0
+    return Spectrum(k0 * trace.ts, n * trace.ts, cycles, amp)
+
+
+def compute_metrics(
+    trace: Trace,
+    *,
+    t_start: float = 0.0,
+    t_end: float = math.inf,
+    thd_window: tuple[float, ...] = (),
+) -> Metrics:
     k0, k1 = step_window(trace, t_start, t_end)
     n = k1 - k0
     te = trace.col("state", "torque")[k0:k1]
@@ -89,7 +157,20 @@ def compute_metrics(trace: Trace, *, t_start: float = 0.0, t_end: float = math.i
         compute_ns_median=float(np.median(ns)),
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
         compute_ns_median_by_strategy=by_strategy,
+        **_thd(trace, thd_window),
     )
+
+
+def _thd(trace: Trace, window: tuple[float, ...]) -> dict[str, float]:
+    if not window:
+        return {}
+    sp = phase_a_spectrum(trace, window[0], window[1])
+    return {
+        "thd": sp.thd,
+        "thd_harmonics": sp.thd_harmonics,
+        "thd_cycles": sp.cycles,
+        "thd_fundamental_hz": sp.fundamental_hz,
+    }
 
 
 class LiveMetrics:

@@ -11,11 +11,19 @@ from collections.abc import Callable
 from typing import Any
 
 from .inverter import clarke, segments
-from .motors import IM_STATE, InductionCoefficients, InductionMotor, induction_rk4
+from .motors import (
+    IM_STATE,
+    PMSM,
+    InductionCoefficients,
+    InductionMotor,
+    PMSMCoefficients,
+    induction_rk4,
+    pmsm_rk4,
+)
 from .profiles import StepProfile
 from .signals import Command, State
 
-__all__ = ["InductionPlant", "rk4"]
+__all__ = ["InductionPlant", "InverterPlant", "PMSMPlant", "rk4"]
 
 Dynamics = Callable[[float, Any, Any, Any], Any]
 TWO_PI = 2.0 * math.pi
@@ -47,48 +55,56 @@ def _rk4(f: Dynamics, t: float, x: tuple, u: Any, c: Any, h: float, n: int) -> t
     return x
 
 
-class InductionPlant:
-    """Induction motor on a two-level inverter with a stepped load (SPEC §2.1, §2.2, §2.4).
+class InverterPlant:
+    """A machine on a two-level inverter with a stepped load (SPEC §2.1, §2.4).
 
-    ``step(command)`` applies command k for one period Ts and returns state k+1. Initial state: all
-    zero (de-energised machine at standstill), switches 000.
+    ``step(command)`` applies command k for one period Ts and returns state k+1: each switching segment
+    is integrated with ``integrator`` (default: the machine's fused RK4) in sub-steps of at most
+    ``max_substep``. Subclasses name the machine's coefficients, initial state and integrator, and
+    say what the state publishes. Initial switches: 000.
     """
+
+    coefficients: Any  #: class with ``of(motor)``: the machine's precomputed constants
+    x0: tuple  #: initial state
+    default_integrator: Callable[..., tuple]
 
     def __init__(
         self,
-        motor: InductionMotor,
+        motor: Any,
         *,
         ts: float,
         u_dc: float,
         load: StepProfile,
         max_substep: float,
-        integrator: Callable[..., tuple] = induction_rk4,
+        integrator: Callable[..., tuple] | None = None,
     ) -> None:
         self.motor = motor
         self.ts = ts
         self.u_dc = u_dc
-        self._coef = InductionCoefficients.of(motor)
+        self._coef = self.coefficients.of(motor)
         self._load = load.sampled(ts)
         self._max_substep = max_substep
-        self._integrate = integrator
+        self._integrate = integrator or type(self).default_integrator
         self._volts = {s: u_dc * clarke(*s) for s in _ALL_STATES}
         self.k = 0
-        self.x: tuple = (0j, 0j, 0.0, 0.0)
+        self.x: tuple = self.x0
         self.switches = (0, 0, 0)
         self._transitions = 0
 
+    def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
+        """(i_s αβ, ω_m, θ_e wrapped, T_e, ψ_s αβ, θ_m) of the present state."""
+        raise NotImplementedError
+
     def state(self) -> State:
         """The present state k as published (measured channels + truth)."""
-        i, psi, w, th = self.x
-        c = self._coef
-        te = c.torque_k * (psi.real * i.imag - psi.imag * i.real)
+        i, w, the, te, psi, th = self._outputs()
         return State(
             float(self.k),
             self.k * self.ts,
             i.real,
             i.imag,
             w,
-            (c.p * th) % TWO_PI,
+            the,
             self.u_dc,
             te,
             psi.real,
@@ -121,6 +137,22 @@ class InductionPlant:
         self.k += 1
         return self.state()
 
+
+class InductionPlant(InverterPlant):
+    """Induction motor (SPEC §2.2); state (i_s, ψ_s, ω_m, θ_m), initially all zero (de-energised,
+    at standstill)."""
+
+    motor: InductionMotor
+    coefficients = InductionCoefficients
+    x0 = (0j, 0j, 0.0, 0.0)
+    default_integrator = staticmethod(induction_rk4)
+
+    def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
+        i, psi, w, th = self.x
+        c = self._coef
+        te = c.torque_k * (psi.real * i.imag - psi.imag * i.real)
+        return i, w, (c.p * th) % TWO_PI, te, psi, th
+
     @property
     def i_s(self) -> complex:
         return self.x[IM_STATE.i_s]
@@ -128,6 +160,25 @@ class InductionPlant:
     @property
     def psi_s(self) -> complex:
         return self.x[IM_STATE.psi_s]
+
+
+class PMSMPlant(InverterPlant):
+    """PMSM (SPEC §2.3); state (i_dq, ω_m, θ_m), initially no current, at standstill, θ_m = 0. The
+    published currents and flux are turned into αβ with θ_e = p·θ_m."""
+
+    motor: PMSM
+    coefficients = PMSMCoefficients
+    x0 = (0j, 0.0, 0.0)
+    default_integrator = staticmethod(pmsm_rk4)
+
+    def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
+        i_dq, w, th = self.x
+        c = self._coef
+        the = c.p * th
+        rot = complex(math.cos(the), math.sin(the))
+        psi_dq = complex(c.l_d * i_dq.real + c.psi_f, c.l_q * i_dq.imag)
+        te = c.torque_k * i_dq.imag * (c.psi_f + (c.l_d - c.l_q) * i_dq.real)
+        return i_dq * rot, w, the % TWO_PI, te, psi_dq * rot, th
 
 
 _ALL_STATES = [(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)]

@@ -9,24 +9,42 @@ plant applies command k for Ts and returns state k+1. Each step's records also g
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any
 
-from .control import InductionController, strategy_names
-from .plant import InductionPlant
+from .control import (
+    InductionController,
+    InductionControllerParams,
+    PMSMController,
+    PMSMControllerParams,
+    PredictiveController,
+    strategy_names,
+)
+from .motors import PMSM, InductionMotor
+from .plant import InductionPlant, InverterPlant, PMSMPlant
 from .scenario import PlantParams, Scenario
 from .speed_pi import SpeedPI
 from .trace import Trace, TraceBuilder
 
-__all__ = ["Components", "build", "run_inprocess"]
+__all__ = ["CONTROLLERS", "PLANTS", "Components", "build", "build_controller", "run_inprocess"]
 
 Sink = Callable[[str, tuple], None]
 
 
+#: motor parameter class → plant class
+PLANTS: Mapping[type, type[InverterPlant]] = {InductionMotor: InductionPlant, PMSM: PMSMPlant}
+#: controller parameter class → controller class
+CONTROLLERS: Mapping[type, type[PredictiveController]] = {
+    InductionControllerParams: InductionController,
+    PMSMControllerParams: PMSMController,
+}
+
+
 @dataclasses.dataclass
 class Components:
-    plant: InductionPlant
+    plant: InverterPlant
     speed_pi: SpeedPI
-    controller: InductionController
+    controller: PredictiveController
 
 
 def with_strategy(scenario: Scenario, strategy: str | None) -> Scenario:
@@ -36,18 +54,29 @@ def with_strategy(scenario: Scenario, strategy: str | None) -> Scenario:
     return dataclasses.replace(scenario, controller=ctrl)
 
 
-def build_plant(p: PlantParams, *, ts: float) -> InductionPlant:
+def build_plant(p: PlantParams, *, ts: float) -> InverterPlant:
     """The plant of a scenario's plant section (shared by the in-process engine and plant_node)."""
-    return InductionPlant(
+    cls: Any = PLANTS[type(p.motor)]
+    plant: InverterPlant = cls(
         p.motor, ts=ts, u_dc=p.u_dc, load=p.load_profile(), max_substep=p.max_substep
     )
+    return plant
+
+
+def build_controller(
+    params: InductionControllerParams | PMSMControllerParams, *, ts: float
+) -> PredictiveController:
+    """The controller of a scenario's torque_controller section (engine and node alike)."""
+    cls: Any = CONTROLLERS[type(params)]
+    ctrl: PredictiveController = cls(params, ts=ts)
+    return ctrl
 
 
 def build(scenario: Scenario) -> Components:
     return Components(
         plant=build_plant(scenario.plant, ts=scenario.ts),
         speed_pi=SpeedPI(scenario.speed_pi, ts=scenario.ts),
-        controller=InductionController(scenario.controller, ts=scenario.ts),
+        controller=build_controller(scenario.controller, ts=scenario.ts),
     )
 
 

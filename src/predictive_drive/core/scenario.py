@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass
 
 from ..errors import ConfigError
-from .control import InductionControllerParams, Machine
-from .motors import InductionMotor
+from .control import InductionControllerParams, Machine, PMSMControllerParams
+from .motors import PMSM, InductionMotor
 from .profiles import StepProfile
 from .speed_pi import SpeedPIParams
 
@@ -42,7 +42,7 @@ class RunParams:
 class PlantParams:
     """Plant: machine, inverter (u_dc in V), load steps (times in s, values in N·m), RK4 sub-step (s)."""
 
-    motor: InductionMotor
+    motor: InductionMotor | PMSM
     u_dc: float
     load_times: tuple[float, ...]
     load_values: tuple[float, ...]
@@ -63,16 +63,26 @@ class PlantParams:
 
 @dataclass(frozen=True)
 class LoggerParams:
-    """Metrics window [window_start, window_end) in s (paper 000: 0.05-6 s); peer timeout in s."""
+    """Metrics window [window_start, window_end) in s (paper 000: 0.05-6 s). thd_window: [start,
+    end] in s of the steady-state stretch whose phase-a current THD is reported (whole electrical
+    cycles inside it), or empty for none."""
 
     window_start: float
     window_end: float
+    thd_window: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if not (0 <= self.window_start < self.window_end):
             raise ConfigError(
                 f"metrics_logger: need 0 <= window_start < window_end, got "
                 f"{self.window_start}, {self.window_end}"
+            )
+        if self.thd_window and not (
+            len(self.thd_window) == 2 and 0 <= self.thd_window[0] < self.thd_window[1]
+        ):
+            raise ConfigError(
+                f"metrics_logger.thd_window must be [] or [start, end] with 0 <= start < end s, "
+                f"got {list(self.thd_window)}"
             )
 
 
@@ -81,7 +91,7 @@ class Scenario:
     run: RunParams
     plant: PlantParams
     speed_pi: SpeedPIParams
-    controller: InductionControllerParams
+    controller: InductionControllerParams | PMSMControllerParams
     logger: LoggerParams
     source: str = ""
 
@@ -92,3 +102,7 @@ class Scenario:
     @property
     def ts(self) -> float:
         return self.run.ts
+
+    @property
+    def machine(self) -> Machine:
+        return Machine(self.run.machine)

@@ -58,4 +58,5 @@ class Command(NamedTuple):
     cal: float  #: number of vector predictions evaluated this step
     torque_est: float  #: controller's torque estimate at k, N·m
     flux_est: float  #: controller's stator-flux magnitude estimate at k, Wb
+    flux_angle: float  #: angle of the controller's stator-flux estimate in αβ at k, rad, [0, 2π)
     compute_ns: float  #: wall time of the control law alone, ns (not deterministic)

@@ -17,7 +17,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..config import NAMESPACE, NODE_SECTIONS, _build, load_scenario
+from ..config import MACHINE_SECTIONS, NAMESPACE, _build, load_scenario
+from ..core.control import Machine
 from ..core.scenario import RunParams, Scenario
 from ..errors import ConfigError, GraphError
 from ..interface import TOPICS, Qos
@@ -39,7 +40,7 @@ _DESCRIPTIONS = {
     "ts": "control period, s",
     "duration": "simulated run length, s",
     "scenario": "scenario name (config/<name>.yaml)",
-    "machine": "machine type: induction",
+    "machine": "machine type: induction | pmsm",
     "strategy": "control law; switchable at run time (takes effect at the next step)",
 }
 
@@ -121,7 +122,7 @@ class DriveNode(Node):
         run = _build(RunParams, self._declare_section(RunParams, {}), {}, f"{where} (/**)")
         if not self.section:
             return run, None
-        cls, nested = NODE_SECTIONS[self.section]
+        cls, nested = MACHINE_SECTIONS[Machine(run.machine)][self.section]
         own = _build(cls, self._declare_section(cls, nested), nested, where)
         return run, own
 

@@ -18,8 +18,8 @@ from rclpy.duration import Duration
 
 from ..bag import BagWriter
 from ..config import resolve_scenario_path
-from ..core.control import InductionController, strategy_names
-from ..core.runner import build_plant
+from ..core.control import strategy_names
+from ..core.runner import build_controller, build_plant
 from ..core.signals import Command, Reference, State
 from ..core.speed_pi import SpeedPI
 from ..interface import CODECS
@@ -152,7 +152,7 @@ class TorqueControllerNode(_Watched):
         super().__init__("torque_controller", **kw)
         run, params = self.load_params()
         self.n = run.steps
-        self.ctrl = InductionController(params, ts=run.ts)
+        self.ctrl = build_controller(params, ts=run.ts)
         self.machine = run.machine
         self.pub_cmd = self.publisher("command")
         self._states: dict[int, State] = {}

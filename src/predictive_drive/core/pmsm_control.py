@@ -1,0 +1,335 @@
+"""Predictive torque control of the PMSM: conventional MPTC and simplified strategies 1-3 (paper 001,
+SPEC §3.3).
+
+The controller sees the measured currents and rotor angle and forms the stator flux and torque with
+its own L_d, L_q, ψ_f (SPEC §2.5). Each candidate vector is predicted with paper 001 eq 1-3 — the
+stator-flux frame, R_s neglected, the rotor frozen over Ts — and its torque from the predicted flux
+with the saliency term (for L_d = L_q this is eq 2 exactly). Cost eq 5, normalised; T* is guarded
+by T_floor because it crosses zero at every load reversal. Candidates are evaluated in ascending
+vector order and the first strict minimum wins. The restricted candidate sets of strategies 2 and 3
+are data (``candidate_tables.json``) that ``predictive-drive analyze`` regenerates from a recording.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from math import asin, cos, sin, sqrt
+from pathlib import Path
+from typing import NamedTuple
+
+from ..errors import ConfigError
+from .decision import Decision, Machine, PredictiveController
+from .motors import PMSM, PMSMCoefficients
+from .signals import Reference, State
+
+__all__ = [
+    "CANDIDATE_TABLES_FILE",
+    "PMSM_STRATEGIES",
+    "CandidateTables",
+    "PMSMController",
+    "PMSMControllerParams",
+    "PMSMPrediction",
+    "load_candidate_tables",
+    "sector",
+]
+
+NAN = math.nan
+INF = math.inf
+TWO_PI = 2.0 * math.pi
+#: angle of V1..V6 in αβ (V1 at 0°, 60° apart); index 0 unused (V0 has no direction)
+VECTOR_ANGLES = (0.0, *(n * math.pi / 3.0 for n in range(6)))
+ACTIVE_VECTORS = (1, 2, 3, 4, 5, 6)
+CANDIDATE_TABLES_FILE = Path(__file__).with_name("candidate_tables.json")
+
+
+def sector(angle: float, count: int) -> int:
+    """0-based sector of an αβ angle (rad) among ``count`` equal sectors starting at 0°:
+    sector 0 is [0°, 360°/count). Paper 001 eq 11-12 number them θ1..θcount. An angle that rounds
+    to 360° is 0°."""
+    return int(angle % TWO_PI / (TWO_PI / count)) % count
+
+
+class CandidateTables(NamedTuple):
+    """Candidate vectors per class. ``six[t][s]``: torque-error sign t (0: ΔT > th, 1: ΔT < -th),
+    6-sector s. ``twelve[t][f][s]``: f the flux-error sign (0: Δψ ≥ 0, 1: Δψ < 0), 12-sector s.
+    Every set is a tuple of vector numbers in ascending order (V0 first)."""
+
+    six: tuple[tuple[tuple[int, ...], ...], ...]
+    twelve: tuple[tuple[tuple[tuple[int, ...], ...], ...], ...]
+    rule: str = ""
+    source: str = ""
+
+
+def load_candidate_tables(path: str | Path = CANDIDATE_TABLES_FILE) -> CandidateTables:
+    """Read candidate tables as written by ``predictive-drive analyze --write-tables``."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+        six = tuple(
+            tuple(tuple(sorted(int(v) for v in cell)) for cell in doc["six_sector"][key])
+            for key in ("T+", "T-")
+        )
+        twelve = tuple(
+            tuple(
+                tuple(tuple(sorted(int(v) for v in cell)) for cell in doc["twelve_sector"][t + f])
+                for f in ("psi+", "psi-")
+            )
+            for t in ("T+", "T-")
+        )
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ConfigError(f"{path}: not a candidate table file ({e})") from None
+    if any(len(row) != 6 for row in six) or any(len(r) != 12 for t in twelve for r in t):
+        raise ConfigError(f"{path}: need 6 sectors per six_sector row and 12 per twelve_sector row")
+    for cell in [c for row in six for c in row] + [c for t in twelve for r in t for c in r]:
+        if not cell or cell[0] != 0 or any(not 0 <= v <= 6 for v in cell):
+            raise ConfigError(
+                f"{path}: candidate sets must be subsets of V0..V6 holding V0 (strategies 2 and 3 "
+                f"always keep the zero vector), got {list(cell)}"
+            )
+    return CandidateTables(six, twelve, doc.get("rule", ""), doc.get("source", ""))
+
+
+TABLES = load_candidate_tables()
+
+
+def _classes(
+    sets: list[tuple[int, ...]],
+) -> tuple[tuple[tuple[int, ...], tuple[Decision, ...]], ...]:
+    """Per class: the non-zero candidates (V0 is in every set, checked on load, and evaluated
+    first) and the decision for each vector with this class's Cal."""
+    return tuple((c[1:], tuple(Decision(n, 1.0, NAN, len(c)) for n in range(7))) for c in sets)
+
+
+#: flat class index: 6-sector s + 6 if ΔT < 0
+_SIX_CLASSES = _classes([c for row in TABLES.six for c in row])
+#: flat class index: 12-sector s + 12 if Δψ < 0 + 24 if ΔT < 0
+_TWELVE_CLASSES = _classes([c for t in TABLES.twelve for r in t for c in r])
+
+
+class PMSMPrediction:
+    """One step's view of the PMSM from the controller's model, and eq 1-3 per candidate.
+
+    After :meth:`prepare`: ``te`` (N·m), ``psi`` (|ψ̂_s|, Wb), ``delta`` (torque angle: ψ̂_s from the
+    rotor d-axis, rad), ``theta_psi`` (ψ̂_s in αβ, [0, 2π)), ``q`` (|V|·Ts/|ψ̂_s|, eq 3).
+    """
+
+    __slots__ = (
+        "c",
+        "ts",
+        "threshold",
+        "t_floor",
+        "te",
+        "psi",
+        "delta",
+        "theta_psi",
+        "q",
+        "consts",
+    )
+
+    def __init__(self, c: PMSMCoefficients, ts: float, threshold: float, t_floor: float) -> None:
+        self.c = c
+        self.ts = ts
+        self.threshold = threshold
+        self.t_floor = t_floor
+        #: what the candidate loop needs of the parameters, in one tuple (one load per step)
+        self.consts = (c.psi_f, 1.0 / c.l_d, 1.0 / c.l_q, c.torque_k, c.l_d - c.l_q, t_floor)
+
+    def prepare(self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float) -> None:
+        c = self.c
+        co, si = math.cos(theta_e), math.sin(theta_e)
+        i_d = i_alpha * co + i_beta * si
+        i_q = i_beta * co - i_alpha * si
+        psi_d = c.l_d * i_d + c.psi_f
+        psi_q = c.l_q * i_q
+        self.te = c.torque_k * i_q * (c.psi_f + (c.l_d - c.l_q) * i_d)
+        psi = math.hypot(psi_d, psi_q)
+        self.psi = psi
+        self.delta = math.atan2(psi_q, psi_d)
+        self.theta_psi = (theta_e + self.delta) % TWO_PI
+        self.q = (2.0 / 3.0) * u_dc * self.ts / psi
+
+    def predict(self, n: int) -> tuple[float, float]:
+        """(T_e(k+1), |ψ_s(k+1)|) if vector ``n`` is applied for Ts (paper 001 eq 1-3)."""
+        return _predict(self, n)
+
+
+def _predict(m: PMSMPrediction, n: int) -> tuple[float, float]:
+    c = m.c
+    if n == 0:
+        r, d1 = 1.0, m.delta
+    else:
+        q = m.q
+        a = VECTOR_ANGLES[n] - m.theta_psi
+        r = math.sqrt(1.0 + q * q + 2.0 * q * math.cos(a))  # eq 1
+        d1 = m.delta + math.asin(q * math.sin(a) / r)  # eq 2's angle
+    psi1 = m.psi * r
+    i_d1 = (psi1 * math.cos(d1) - c.psi_f) / c.l_d
+    i_q1 = psi1 * math.sin(d1) / c.l_q
+    return c.torque_k * i_q1 * (c.psi_f + (c.l_d - c.l_q) * i_d1), psi1
+
+
+def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: float) -> int:
+    """First strict minimum of eq 5 over V0 and the non-zero vectors ``active`` (ascending; sqrt
+    dropped: it keeps the order). V0 leaves ψ and δ as they are, so its prediction is T̂ itself."""
+    pf, ild, ilq, tk, dl, t_floor = m.consts
+    psi, delta, th, q, te = m.psi, m.delta, m.theta_psi, m.q, m.te
+    inv_t = 1.0 / (t_ref if t_ref > t_floor else -t_ref if -t_ref > t_floor else t_floor)
+    inv_p = 1.0 / psi_ref
+    e_t = (te - t_ref) * inv_t
+    e_p = (psi - psi_ref) * inv_p
+    best = e_t * e_t + e_p * e_p
+    best_n = 0
+    qq1 = 1.0 + q * q
+    q2 = q + q
+    angles = VECTOR_ANGLES
+    for n in active:
+        a = angles[n] - th
+        r = sqrt(qq1 + q2 * cos(a))  # eq 1
+        d1 = delta + asin(q * sin(a) / r)  # eq 2's angle
+        psi1 = psi * r
+        i_q1 = psi1 * sin(d1) * ilq
+        e_t = (tk * i_q1 * (pf + dl * (psi1 * cos(d1) - pf) * ild) - t_ref) * inv_t
+        e_p = (psi1 - psi_ref) * inv_p
+        g = e_t * e_t + e_p * e_p
+        if g < best:
+            best = g
+            best_n = n
+    return best_n
+
+
+_ZERO = Decision(0, 1.0, NAN, 0)
+#: the decisions a full-period strategy can return, by (predictions evaluated, vector): no per-step
+#: allocation
+_DECISIONS = {cal: tuple(Decision(n, 1.0, NAN, cal) for n in range(7)) for cal in range(1, 8)}
+_SIX = TWO_PI / 6  #: sector widths, rad (divided by, as in sector(): exact at the boundaries)
+_TWELVE = TWO_PI / 12
+
+
+class MPTC:
+    """Conventional MPTC (paper 001 §2): all 7 vectors, cost eq 5."""
+
+    name = "mptc"
+
+    def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        return _DECISIONS[7][_argmin(m, ACTIVE_VECTORS, torque_ref, flux_ref)]
+
+
+class Simplified1:
+    """Strategy 1 (paper 001 §3): |T* - T̂| ≤ threshold → the zero vector, nothing evaluated;
+    otherwise conventional MPTC."""
+
+    name = "simplified1"
+
+    def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        if abs(torque_ref - m.te) <= m.threshold:
+            return _ZERO
+        return _DECISIONS[7][_argmin(m, ACTIVE_VECTORS, torque_ref, flux_ref)]
+
+
+class Simplified2:
+    """Strategy 2 (paper 001 §4): strategy 1 with 4 candidates above the threshold, chosen by the
+    6-sector of ψ̂_s and the sign of the torque error (SPEC §3.3 table)."""
+
+    name = "simplified2"
+
+    def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        dt = torque_ref - m.te
+        if abs(dt) <= m.threshold:
+            return _ZERO
+        # θ_ψ is in [0, 2π): sector(θ_ψ, 6), inlined
+        active, decisions = _SIX_CLASSES[int(m.theta_psi / _SIX) % 6 + (6 if dt < 0.0 else 0)]
+        return decisions[_argmin(m, active, torque_ref, flux_ref)]
+
+
+class Simplified3:
+    """Strategy 3 (paper 001 §5): 12 sectors of ψ̂_s, the torque-error sign and the flux-error sign
+    (Δψ = ψ* - |ψ̂_s| ≥ 0 counts as positive); 3 or 4 candidates."""
+
+    name = "simplified3"
+
+    def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
+        dt = torque_ref - m.te
+        if abs(dt) <= m.threshold:
+            return _ZERO
+        k = int(m.theta_psi / _TWELVE) % 12  # sector(θ_ψ, 12), inlined
+        if dt < 0.0:
+            k += 24
+        if flux_ref < m.psi:
+            k += 12
+        active, decisions = _TWELVE_CLASSES[k]
+        return decisions[_argmin(m, active, torque_ref, flux_ref)]
+
+
+PMSM_STRATEGIES: Mapping[str, type] = {
+    "mptc": MPTC,
+    "simplified1": Simplified1,
+    "simplified2": Simplified2,
+    "simplified3": Simplified3,
+}
+
+
+@dataclass(frozen=True)
+class PMSMControllerParams:
+    """Controller settings for the PMSM (paper 001).
+
+    ``motor`` is the controller's own model (may differ from the plant's: parameter mismatch).
+    torque_threshold: N·m, |T* - T̂| at or below which strategies 1-3 output the zero vector (paper
+    001 §3: 5 % of rated torque; NaN → 5 % of ``motor.rated_torque``). t_floor: N·m, the smallest
+    |T*| the torque term of eq 5 is divided by (NaN → 1 % of rated torque).
+    """
+
+    motor: PMSM
+    strategy: str
+    torque_threshold: float = NAN
+    t_floor: float = NAN
+
+    def __post_init__(self) -> None:
+        if self.strategy not in PMSM_STRATEGIES:
+            raise ConfigError(
+                f"torque_controller.strategy: unknown strategy {self.strategy!r} for machine "
+                f"'pmsm'; valid: {', '.join(PMSM_STRATEGIES)}"
+            )
+        for name, share in (("torque_threshold", 0.05), ("t_floor", 0.01)):
+            v = getattr(self, name)
+            if math.isnan(v):
+                object.__setattr__(self, name, share * self.motor.rated_torque)
+            elif not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"torque_controller.{name} must be a torque >= 0 N·m, got {v!r}")
+        if self.t_floor <= 0:
+            raise ConfigError(f"torque_controller.t_floor must be > 0 N·m, got {self.t_floor!r}")
+
+
+class PMSMController(PredictiveController):
+    """Predictive torque controller for the PMSM: ``step(state k, reference k) -> command k``."""
+
+    machine = Machine.PMSM
+    strategies = PMSM_STRATEGIES
+
+    def __init__(self, params: PMSMControllerParams, *, ts: float) -> None:
+        self.params = params
+        self._pred = PMSMPrediction(
+            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor
+        )
+        super().__init__(params.strategy, ts=ts)
+
+    def _observe(self, state: State) -> None:
+        m = self._pred
+        m.prepare(state.i_alpha, state.i_beta, state.theta_e, state.u_dc)
+        self.est_torque = m.te
+        self.est_flux = m.psi
+        self.est_flux_angle = m.theta_psi
+
+    def _decide(self, state: State, ref: Reference) -> Decision:
+        return self.strategy.decide(self._pred, ref.torque_ref, ref.flux_ref)
+
+    def decision_inputs(self, states: list[State]) -> list[PMSMPrediction]:
+        p = self._pred
+        out = []
+        for s in states:
+            m = PMSMPrediction(p.c, p.ts, p.threshold, p.t_floor)
+            m.prepare(s.i_alpha, s.i_beta, s.theta_e, s.u_dc)
+            out.append(m)
+        return out

@@ -1,0 +1,150 @@
+"""Utilization analysis (SPEC §6.4): the candidate tables strategies 2 and 3 use are regenerated
+from a strategy-1 recording; the paper-001 reproductions run end to end (shortened)."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from predictive_drive import api, cli
+from predictive_drive.core.analysis import derive_candidates, utilization
+from predictive_drive.core.control import make_strategy
+from predictive_drive.core.motors import PMSMCoefficients
+from predictive_drive.core.pmsm_control import (
+    TABLES,
+    PMSMPrediction,
+    load_candidate_tables,
+    sector,
+)
+from predictive_drive.core.signals import Command, Reference, State
+from predictive_drive.core.trace import Trace
+from predictive_drive.errors import ConfigError
+
+
+@pytest.fixture(scope="module")
+def s1_bag(tmp_path_factory):
+    """The full 4 s spmsm_analysis run under strategy 1 (the paper's design run), recorded."""
+    out = tmp_path_factory.mktemp("analysis") / "s1"
+    sc, text = api.prepare("spmsm_analysis", strategy="simplified1")
+    api.run_inprocess_to_bag(sc, text, out)
+    return out
+
+
+def test_analyze_regenerates_the_candidate_tables(s1_bag, tmp_path):
+    d = api.analyze(s1_bag, write_tables=tmp_path / "tables.json")
+    assert d["threshold"] == pytest.approx(0.6) and d["steps"] == 80000
+    assert d["matches_tables"], d["differences"]
+    # SPEC §3.3's printed column (ΔT > +th, Δψ ≥ 0) — the one paper 001 prints for strategy 3
+    assert d["derived"]["twelve_sector"]["T+psi+"][:3] == [[0, 2, 3], [0, 2, 3, 4], [0, 3, 4]]
+    written = load_candidate_tables(tmp_path / "tables.json")
+    assert (written.six, written.twelve) == (TABLES.six, TABLES.twelve)
+    assert "as many of the class's steps" in written.rule
+    # strategy 1 outputs V0 whenever |ΔT| <= 0.6 and evaluates all 7 vectors otherwise
+    bands = {b["band"]: b for b in d["bands"]}
+    assert bands[0.6]["n"] == bands[0.6]["n_v0"]
+    assert bands[None]["n"] == 80000
+
+
+def test_analyze_cli_prints_the_tables(s1_bag, capsys):
+    assert cli.main(["analyze", str(s1_bag)]) == 0
+    out = capsys.readouterr().out
+    assert "Utilization %, 12 sectors, T+psi+" in out and "all 60 classes" in out
+    assert cli.main(["analyze", str(s1_bag), "--json", "--threshold", "1.0"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["threshold"] == 1.0 and not d["matches_tables"]  # another threshold, other classes
+
+
+def synthetic(rows):
+    """A trace from (T*, T̂, ψ*, ψ̂, flux angle in degrees, vector) per step."""
+    n = len(rows)
+    state = np.zeros((n + 1, len(State._fields)))
+    state[:, 0] = np.arange(n + 1)
+    ref = np.zeros((n + 1, len(Reference._fields)))
+    ref[:, 0] = np.arange(n + 1)
+    cmd = np.zeros((n, len(Command._fields)))
+    cmd[:, 0] = np.arange(n)
+    f = Command._fields.index
+    for k, (t_ref, t_est, psi_ref, psi_est, deg, vec) in enumerate(rows):
+        ref[k, 2], ref[k, 3] = t_ref, psi_ref
+        cmd[k, f("torque_est")], cmd[k, f("flux_est")] = t_est, psi_est
+        cmd[k, f("flux_angle")], cmd[k, f("vector")] = math.radians(deg), vec
+    return Trace(5e-5, state, ref, cmd)
+
+
+def test_utilization_classes_and_sign_conventions():
+    tr = synthetic(
+        [
+            (10.0, 9.0, 0.3, 0.3, 15.0, 2),  # ΔT = +1 > th, Δψ = 0 counts positive, θ1/θ1
+            (10.0, 9.0, 0.3, 0.31, 45.0, 3),  # ΔT > th, Δψ < 0, θ1 of 6 / θ2 of 12
+            (10.0, 10.5, 0.3, 0.29, 350.0, 0),  # |ΔT| = 0.5 <= th: no class, band 0.5
+            (0.0, 1.0, 0.3, 0.29, 180.0, 6),  # ΔT = -1, Δψ > 0, θ4 / θ7
+        ]
+    )
+    u = utilization(tr, threshold=0.6)
+    assert u.six[0, 0, 2] == 1 and u.six[0, 0, 3] == 1 and u.six[1, 3, 6] == 1
+    assert u.six.sum() == 3
+    assert u.twelve[0, 0, 0, 2] == 1 and u.twelve[0, 1, 1, 3] == 1 and u.twelve[1, 0, 6, 6] == 1
+    bands = {b: (n, n0) for b, n, n0 in u.bands}
+    assert bands[0.5] == (1, 1) and bands[1.0] == (4, 1) and bands[math.inf] == (4, 1)
+
+
+def test_derivation_rule_keeps_v0_and_vectors_near_the_most_used():
+    counts = np.array([[50, 0, 100, 14, 16, 0, 1], [0, 0, 0, 0, 0, 0, 0]])
+    assert derive_candidates(counts) == [[0, 2, 4], [0]]
+
+
+@pytest.mark.parametrize("degrees", [i * 30.0 for i in range(12)])
+def test_strategies_use_the_sector_of_sector(degrees):
+    """At every sector boundary the strategies' inlined sector equals sector()."""
+    m = PMSMPrediction(
+        PMSMCoefficients.of(api.prepare("spmsm_short")[0].plant.motor), 5e-5, 0.6, 0.12
+    )
+    m.prepare(0.0, 0.0, 0.0, 312.0)
+    m.theta_psi = math.radians(degrees) % (2 * math.pi)
+    s2 = make_strategy("pmsm", "simplified2").decide(m, m.te + 5.0, m.psi)
+    s3 = make_strategy("pmsm", "simplified3").decide(m, m.te + 5.0, m.psi)
+    assert s2.cal == len(TABLES.six[0][sector(m.theta_psi, 6)])
+    assert s3.cal == len(TABLES.twelve[0][0][sector(m.theta_psi, 12)])
+
+
+def test_analyze_needs_a_threshold_for_an_induction_run(tmp_path):
+    sc, text = api.prepare("im_short", duration=0.01)
+    api.run_inprocess_to_bag(sc, text, tmp_path / "im")
+    with pytest.raises(ConfigError, match="--threshold"):
+        api.analyze(tmp_path / "im")
+    assert api.analyze(tmp_path / "im", threshold=0.5)["steps"] == 200
+
+
+def test_candidate_tables_must_keep_v0(tmp_path):
+    doc = json.loads(
+        (
+            api.Path(__file__).parents[1] / "src/predictive_drive/core/candidate_tables.json"
+        ).read_text()
+    )
+    doc["six_sector"]["T+"][0] = [2, 3, 4]
+    p = tmp_path / "bad.json"
+    p.write_text(json.dumps(doc))
+    with pytest.raises(ConfigError, match="holding V0"):
+        load_candidate_tables(p)
+
+
+def test_reproduce_ipmsm_validation_shortened(tmp_path):
+    d = api.reproduce("ipmsm_validation", duration=0.1, repeats=1, out_root=tmp_path)
+    rows = {r["strategy"]: r for r in d["rows"]}
+    assert list(rows) == ["mptc", "simplified1", "simplified2", "simplified3"]
+    assert all(r["replay_identical"] for r in rows.values())
+    assert rows["mptc"]["compute_ratio"] == 1.0 and rows["mptc"]["cal_ave"] == 7.0
+    assert rows["simplified3"]["cal_ave"] < rows["simplified1"]["cal_ave"] < 7.0
+    assert rows["mptc"]["paper"]["t_rmse"] == 1.2668
+    assert 0 < rows["simplified2"]["compute_ratio"]
+    assert math.isnan(rows["mptc"]["thd"])  # the run ends before the THD window (0.2-0.5 s)
+
+
+def test_reproduce_spmsm_sweep_shortened(tmp_path):
+    d = api.reproduce("spmsm_analysis", duration=0.02, out_root=tmp_path)
+    th = [r.get("torque_threshold") for r in d["rows"]]
+    assert th == [None] + [round(0.1 * i, 1) for i in range(1, 16)]
+    bag = d["rows"][6]["bag"]  # threshold 0.6: the bag stores the swept scenario
+    assert api.analyze(bag)["threshold"] == 0.6
+    assert api.analyze(d["rows"][15]["bag"])["threshold"] == 1.5

@@ -1,0 +1,296 @@
+"""PMSM plant and paper 001 strategies: physics against closed forms, each strategy against an
+exhaustive search on its own candidate set, sector and sign conventions, the T* → 0 guard."""
+
+import cmath
+import dataclasses
+import math
+import random
+
+import numpy as np
+import pytest
+
+from predictive_drive.config import load_scenario
+from predictive_drive.core.control import PMSMController, make_strategy
+from predictive_drive.core.inverter import vector_voltages
+from predictive_drive.core.metrics import compute_metrics, phase_a_spectrum
+from predictive_drive.core.motors import (
+    PMSM,
+    PMSMCoefficients,
+    pmsm_dynamics,
+    pmsm_rk4,
+    pmsm_torque,
+)
+from predictive_drive.core.plant import PMSMPlant, rk4
+from predictive_drive.core.pmsm_control import TABLES, PMSMPrediction, sector
+from predictive_drive.core.profiles import StepProfile
+from predictive_drive.core.runner import run_inprocess, with_strategy
+from predictive_drive.core.signals import Reference, State
+from predictive_drive.core.trace import Trace
+
+TS = 5e-5
+SPMSM = PMSM(0.2, 0.0085, 0.0085, 0.175, 4, 0.001, 12.0, 750.0)
+IPMSM = PMSM(0.25, 0.0033, 0.0073, 0.2264, 3, 0.001, 15.0, 1000.0)
+U_DC = 312.0
+
+
+@pytest.fixture(scope="module")
+def ipmsm_short():
+    return load_scenario("ipmsm_short")
+
+
+@pytest.fixture(scope="module")
+def ipmsm_traces(ipmsm_short):
+    names = ("mptc", "simplified1", "simplified2", "simplified3")
+    return {s: run_inprocess(with_strategy(ipmsm_short, s)) for s in names}
+
+
+def test_torque_formula_and_saliency():
+    c = PMSMCoefficients.of(IPMSM)
+    i = complex(-4.0, 12.0)
+    expected = 1.5 * 3 * (0.2264 * 12.0 + (0.0033 - 0.0073) * (-4.0) * 12.0)
+    assert pmsm_torque(i, c) == pytest.approx(expected, rel=1e-14)
+    # surface machine: no reluctance torque, i_d does not matter
+    cs = PMSMCoefficients.of(SPMSM)
+    assert pmsm_torque(complex(-4.0, 12.0), cs) == pytest.approx(pmsm_torque(12.0j, cs))
+
+
+def test_fused_rk4_equals_generic_rk4():
+    c = PMSMCoefficients.of(IPMSM)
+    x = (complex(-3.0, 9.0), 80.0, 0.4)
+    u = (200.0 * cmath.exp(0.7j), 5.0)
+    a = pmsm_rk4(0.0, x, u, c, 3e-5, 2)
+    b = rk4(pmsm_dynamics)(0.0, x, u, c, 3e-5, 2)
+    np.testing.assert_allclose([a[0], a[1], a[2]], [b[0], b[1], b[2]], rtol=1e-13, atol=1e-13)
+
+
+def test_locked_rotor_d_axis_step_is_first_order_lag():
+    """θ = 0, rotor locked: a voltage along α is along d, i_d(t) = U/R (1 - e^{-tR/L_d})."""
+    c = PMSMCoefficients.of(IPMSM)._replace(inv_j=0.0)
+    u = 20.0
+    for t in (1e-4, 5e-3, 5e-2):
+        x = pmsm_rk4(0.0, (0j, 0.0, 0.0), (complex(u, 0.0), 0.0), c, t, math.ceil(t / TS))
+        exact = u / IPMSM.r_s * (1 - math.exp(-t * IPMSM.r_s / IPMSM.l_d))
+        assert x[0].real == pytest.approx(exact, rel=1e-8)
+        assert abs(x[0].imag) < 1e-12 and x[1] == 0.0
+
+
+def test_plant_publishes_park_consistent_alpha_beta():
+    """Published i_αβ and ψ_αβ are the dq state turned by θ_e; the torque the dq formula's."""
+    plant = PMSMPlant(IPMSM, ts=TS, u_dc=U_DC, load=StepProfile((0.0,), (0.0,)), max_substep=TS)
+    plant.x = (complex(-3.0, 11.0), 50.0, 1.234)
+    s = plant.state()
+    the = 3 * 1.234
+    i_dq = complex(s.i_alpha, s.i_beta) * cmath.exp(-1j * the)
+    assert i_dq == pytest.approx(complex(-3.0, 11.0), abs=1e-12)
+    psi_dq = complex(s.psi_alpha, s.psi_beta) * cmath.exp(-1j * the)
+    assert psi_dq == pytest.approx(complex(0.0033 * -3.0 + 0.2264, 0.0073 * 11.0), abs=1e-12)
+    assert s.theta_e == pytest.approx(the % (2 * math.pi))
+    assert s.torque == pytest.approx(pmsm_torque(complex(-3.0, 11.0), PMSMCoefficients.of(IPMSM)))
+
+
+def test_halving_the_substep_changes_t_rmse_by_less_than_one_percent(ipmsm_short):
+    sc = with_strategy(ipmsm_short, "mptc")
+    fine = dataclasses.replace(
+        sc, plant=dataclasses.replace(sc.plant, max_substep=sc.plant.max_substep / 2)
+    )
+    steps = 2000
+    a = compute_metrics(run_inprocess(sc, steps=steps)).t_rmse
+    b = compute_metrics(run_inprocess(fine, steps=steps)).t_rmse
+    assert abs(a - b) < 0.01 * a
+
+
+def random_views(motor, n, seed=3):
+    rng = random.Random(seed)
+    c = PMSMCoefficients.of(motor)
+    for _ in range(n):
+        i = complex(rng.uniform(-8, 4), rng.uniform(-25, 25))
+        theta_e = rng.uniform(0, 2 * math.pi)
+        i_ab = i * cmath.exp(1j * theta_e)
+        m = PMSMPrediction(c, TS, 0.05 * motor.rated_torque, 0.01 * motor.rated_torque)
+        m.prepare(i_ab.real, i_ab.imag, theta_e, U_DC)
+        yield m, theta_e, rng.uniform(-30, 30), rng.choice([0.3, m.psi, m.psi * 1.01])
+
+
+def vector_form(m, theta_e, n):
+    """Independent prediction: ψ(k+1) = ψ(k) + V·Ts in αβ (R_s neglected, rotor frozen), torque from
+    the predicted flux in the rotor frame."""
+    c = m.c
+    rot = cmath.exp(1j * theta_e)
+    psi = m.psi * cmath.exp(1j * m.theta_psi)
+    psi1 = (psi + vector_voltages(U_DC)[n] * TS) / rot
+    i_d, i_q = (psi1.real - c.psi_f) / c.l_d, psi1.imag / c.l_q
+    return pmsm_torque(complex(i_d, i_q), c), abs(psi1)
+
+
+@pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
+def test_eq1_3_prediction_equals_the_vector_form(motor):
+    for m, theta_e, _, _ in random_views(motor, 200):
+        for n in range(7):
+            t1, p1 = m.predict(n)
+            t2, p2 = vector_form(m, theta_e, n)
+            assert t1 == pytest.approx(t2, rel=1e-9, abs=1e-9)
+            assert p1 == pytest.approx(p2, rel=1e-12)
+
+
+def test_eq2_literal_for_the_surface_machine():
+    """SPMSM: T(k+1) = 3pψ_fψ_s/(2L_d)·sqrt(1+q²+2q cos α)·sin(δ + asin(q sin α / sqrt(...)))."""
+    for m, _, _, _ in random_views(SPMSM, 50):
+        for n in range(1, 7):
+            a = (n - 1) * math.pi / 3 - m.theta_psi
+            q = m.q
+            r = math.sqrt(1 + q * q + 2 * q * math.cos(a))
+            t = (
+                3
+                * 4
+                * 0.175
+                * m.psi
+                / (2 * 0.0085)
+                * r
+                * math.sin(m.delta + math.asin(q * math.sin(a) / r))
+            )
+            assert m.predict(n)[0] == pytest.approx(t, rel=1e-12)
+
+
+def candidates_of(name, m, t_ref, psi_ref):
+    """What the strategy may choose from, per SPEC §3.3 (None: the zero vector, nothing evaluated)."""
+    d_t = t_ref - m.te
+    if name != "mptc" and abs(d_t) <= m.threshold:
+        return None
+    if name in ("mptc", "simplified1"):
+        return tuple(range(7))
+    if name == "simplified2":
+        return TABLES.six[0 if d_t > 0 else 1][sector(m.theta_psi, 6)]
+    f = 0 if psi_ref - m.psi >= 0 else 1
+    return TABLES.twelve[0 if d_t > 0 else 1][f][sector(m.theta_psi, 12)]
+
+
+@pytest.mark.parametrize("name", ["mptc", "simplified1", "simplified2", "simplified3"])
+@pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
+def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
+    s = make_strategy("pmsm", name)
+    for m, theta_e, t_ref, psi_ref in random_views(motor, 300):
+        d = s.decide(m, t_ref, psi_ref)
+        cands = candidates_of(name, m, t_ref, psi_ref)
+        if cands is None:
+            assert (d.vector, d.cal) == (0, 0)
+            continue
+        norm_t = max(abs(t_ref), m.t_floor)
+        costs = []
+        for n in cands:
+            t1, p1 = vector_form(m, theta_e, n)
+            costs.append(math.sqrt(((t1 - t_ref) / norm_t) ** 2 + ((p1 - psi_ref) / psi_ref) ** 2))
+        best = cands[int(np.argmin(costs))]  # first minimum, ascending vector order
+        assert d.vector == best, (name, cands, costs)
+        assert d.cal == len(cands) and d.fraction == 1.0
+
+
+@pytest.mark.parametrize(
+    "degrees, six, twelve",
+    [
+        (0.0, 0, 0),
+        (29.999, 0, 0),
+        (30.0, 0, 1),
+        (59.999, 0, 1),
+        (60.0, 1, 2),
+        (359.999, 5, 11),
+        (360.0, 0, 0),
+        (-0.001, 5, 11),
+        (180.0, 3, 6),
+    ],
+)
+def test_sector_boundaries(degrees, six, twelve):
+    a = math.radians(degrees)
+    assert sector(a, 6) == six and sector(a, 12) == twelve
+
+
+class _View:
+    """A hand-made controller view for the sign-convention tests."""
+
+    def __init__(self, te, psi, theta_psi, threshold=0.6):
+        m = PMSMPrediction(PMSMCoefficients.of(SPMSM), TS, threshold, 0.12)
+        m.prepare(0.0, 0.0, 0.0, U_DC)  # i = 0: ψ = ψ_f along d
+        m.te, m.psi, m.theta_psi, m.delta = te, psi, theta_psi, 0.2
+        m.q = (2 / 3) * U_DC * TS / psi
+        self.m = m
+
+
+def test_flux_error_zero_counts_as_positive():
+    v = _View(te=5.0, psi=0.3, theta_psi=math.radians(15)).m
+    d = make_strategy("pmsm", "simplified3").decide(v, 8.0, 0.3)  # Δψ = 0 exactly
+    assert d.cal == len(TABLES.twelve[0][0][0]) == 3  # θ1, T+ψ+: V0 V2 V3
+    d = make_strategy("pmsm", "simplified3").decide(v, 8.0, 0.2999)  # Δψ < 0
+    assert d.cal == len(TABLES.twelve[0][1][0]) == 4  # θ1, T+ψ−: V0 V2 V3 V4
+
+
+def test_threshold_is_inclusive_and_skips_all_predictions():
+    v = _View(te=5.0, psi=0.3, theta_psi=1.0).m
+    for name in ("simplified1", "simplified2", "simplified3"):
+        s = make_strategy("pmsm", name)
+        assert s.decide(v, 5.0 + 0.6, 0.3)[::3] == (0, 0)
+        assert s.decide(v, 5.0 - 0.6, 0.3)[::3] == (0, 0)
+        assert s.decide(v, 5.0 + 0.61, 0.3).cal > 0
+
+
+def test_torque_reference_zero_is_guarded_by_t_floor():
+    """T* = 0 at a load reversal: the torque term divides by T_floor, not by zero."""
+    s = make_strategy("pmsm", "mptc")
+    for m, theta_e, _, _ in random_views(SPMSM, 50):
+        d = s.decide(m, 0.0, 0.3)
+        costs = [
+            math.hypot(
+                vector_form(m, theta_e, n)[0] / m.t_floor,
+                (vector_form(m, theta_e, n)[1] - 0.3) / 0.3,
+            )
+            for n in range(7)
+        ]
+        assert d.vector == int(np.argmin(costs))
+
+
+def test_controller_estimate_uses_its_own_parameters(ipmsm_short):
+    """Exact parameters: the estimate is the plant's truth; L_q off by 30 %: it is not."""
+    sc = ipmsm_short
+    tr = run_inprocess(sc, steps=400)
+    te = tr.col("state", "torque")[:400]
+    psi = np.hypot(tr.col("state", "psi_alpha"), tr.col("state", "psi_beta"))[:400]
+    np.testing.assert_allclose(tr.col("command", "torque_est"), te, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(tr.col("command", "flux_est"), psi, rtol=1e-12)
+    off = dataclasses.replace(sc.controller.motor, l_q=sc.controller.motor.l_q * 1.3)
+    ctrl = PMSMController(dataclasses.replace(sc.controller, motor=off), ts=TS)
+    s = State(*tr.state[300])
+    cmd = ctrl.step(s, Reference(*tr.reference[300]))
+    assert abs(cmd.torque_est - s.torque) > 0.05 * abs(s.torque)
+
+
+def test_closed_loop_ipmsm_short(ipmsm_traces):
+    """Sanity bands on the 0.3 s IPMSM run: the speed follows its reversal, the torque its
+    reference, and the simplified strategies evaluate fewer vectors in the paper's order."""
+    cal = {}
+    for name, tr in ipmsm_traces.items():
+        m = compute_metrics(tr, t_start=0.02)
+        w = tr.col("state", "omega_m")
+        assert w[int(0.14 / TS)] == pytest.approx(1000 * math.pi / 30, rel=0.05), name
+        assert w[-1] == pytest.approx(-1000 * math.pi / 30, rel=0.05), name
+        assert m.t_rmse < 4.0, name  # the compressed reversals dominate (full run: ~1.3)
+        assert m.psi_rmse < 0.02, name
+        cal[name] = m.cal_ave
+    assert cal["mptc"] == 7.0
+    assert cal["mptc"] > cal["simplified1"] > cal["simplified2"] > cal["simplified3"] > 1.0
+
+
+def test_phase_current_spectrum_of_a_known_signal():
+    """THD of a synthetic current with a 5th harmonic (10 %) and an interharmonic (5 %)."""
+    ts, f1, n = 5e-5, 50.0, 8000
+    k = np.arange(n + 1)
+    theta = 2 * math.pi * f1 * k * ts
+    i_a = 10 * np.cos(theta) + 1.0 * np.cos(5 * theta) + 0.5 * np.cos(2 * math.pi * 1234.5 * k * ts)
+    state = np.zeros((n + 1, len(State._fields)))
+    state[:, 0], state[:, 1] = k, k * ts
+    state[:, State._fields.index("theta_e")] = np.mod(theta, 2 * math.pi)
+    state[:, State._fields.index("i_alpha")] = i_a
+    tr = Trace(ts, state, np.zeros((n + 1, 5)), np.zeros((n, 17)))
+    sp = phase_a_spectrum(tr, 0.0, 0.2)
+    assert sp.cycles == 10 and sp.fundamental_hz == pytest.approx(50.0)
+    assert sp.amplitude[sp.cycles] == pytest.approx(10.0, rel=1e-4)  # leakage of 1234.5 Hz
+    assert sp.thd_harmonics == pytest.approx(0.1, rel=1e-3)
+    # the interharmonic leaks over a few bins, but its energy is all counted
+    assert sp.thd == pytest.approx(math.hypot(0.1, 0.05), rel=0.01)
