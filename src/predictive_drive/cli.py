@@ -143,7 +143,7 @@ _COLUMNS: dict[str, list[tuple[str, str, float, str]]] = {
         ("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
         ("V0 %", "zero_share", 100.0, ".2f"),
         ("compute ratio", "compute_ratio", 1.0, ".3f"),
-        ("µs/step", "replay_ns_per_step", 1e-3, ".2f"),
+        ("µs/step", "compute_ns_hot", 1e-3, ".2f"),
     ],
 }
 
