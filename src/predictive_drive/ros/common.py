@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -26,6 +27,7 @@ from ..interface import TOPICS, Qos
 __all__ = [
     "DriveNode",
     "executor",
+    "hold_signals",
     "qos",
     "spin_node",
 ]
@@ -191,6 +193,7 @@ def spin_node(
         print(f"{e}", file=sys.stderr)
         code = 2
     finally:
+        hold_signals()
         if node is not None:
             if node.failure:
                 print(node.failure, file=sys.stderr)
@@ -200,6 +203,14 @@ def spin_node(
             node.destroy_node()
         rclpy.try_shutdown()
     return code
+
+
+def hold_signals() -> None:
+    """From here on the process is closing: a second SIGINT/SIGTERM (or one still pending after
+    rclpy's own handler shut the context down) must not raise KeyboardInterrupt in the middle of
+    closing the bag. The launcher still escalates to SIGKILL if closing hangs."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def spin_nodes(nodes: list[DriveNode]) -> int:

@@ -8,7 +8,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 
 from ..errors import ConfigError, GraphError
-from .common import spin_nodes
+from .common import hold_signals, spin_nodes
 from .nodes import NODE_CLASSES
 
 __all__ = ["main"]
@@ -29,6 +29,7 @@ def main(args: list[str] | None = None) -> int:
         print(e, file=sys.stderr)
         code = 2
     finally:
+        hold_signals()
         for n in nodes:
             if n.failure:
                 print(n.failure, file=sys.stderr)
