@@ -465,7 +465,7 @@ def analyze(
     """Vector utilization of a recording (paper 001 Tables 1, 3-8) and the candidate sets it
     derives, compared with the tables strategies 2 and 3 use."""
     from .core.analysis import DERIVATION_RULE, derive_candidates, utilization
-    from .core.pmsm_control import TABLES
+    from .core.pmsm_control import TABLES, class_document
 
     trace, info = read_bag(bag)
     sc = scenario_of(info.info, info.path)
@@ -480,44 +480,17 @@ def analyze(
         raise ConfigError(f"--threshold must be a torque >= 0 N·m, got {threshold}")
     start, end = metrics_window(sc)
     u = utilization(trace, threshold=threshold, t_start=start, t_end=min(end, trace.steps * sc.ts))
-    six = derive_candidates(u.six)
-    twelve = derive_candidates(u.twelve)
-    t_keys, f_keys = ("T+", "T-"), ("psi+", "psi-")
-    derived = {
-        "six_sector": {t_keys[t]: six[t] for t in range(2)},
-        "twelve_sector": {t_keys[t] + f_keys[f]: twelve[t][f] for t in range(2) for f in range(2)},
-    }
-    differences = []
-    for t in range(2):
-        for s in range(6):
-            if tuple(six[t][s]) != TABLES.six[t][s]:
-                differences.append(
-                    f"6 sectors, {t_keys[t]}, θ{s + 1}: derived {six[t][s]}, "
-                    f"used {list(TABLES.six[t][s])}"
-                )
-        for f in range(2):
-            for s in range(12):
-                if tuple(twelve[t][f][s]) != TABLES.twelve[t][f][s]:
-                    differences.append(
-                        f"12 sectors, {t_keys[t]}{f_keys[f]}, θ{s + 1}: derived "
-                        f"{twelve[t][f][s]}, used {list(TABLES.twelve[t][f][s])}"
-                    )
-    shares = {
-        "six_sector": {t_keys[t]: u.shares(u.six[t]).tolist() for t in range(2)},
-        "twelve_sector": {
-            t_keys[t] + f_keys[f]: u.shares(u.twelve[t, f]).tolist()
-            for t in range(2)
-            for f in range(2)
-        },
-    }
-    counts = {
-        "six_sector": {t_keys[t]: u.six[t].sum(axis=-1).tolist() for t in range(2)},
-        "twelve_sector": {
-            t_keys[t] + f_keys[f]: u.twelve[t, f].sum(axis=-1).tolist()
-            for t in range(2)
-            for f in range(2)
-        },
-    }
+    derived = class_document(derive_candidates(u.six), derive_candidates(u.twelve))
+    used = class_document(TABLES.six, TABLES.twelve)
+    differences = [
+        f"{table.split('_')[0]} sectors, {cls}, θ{s + 1}: derived {d}, used {u_}"
+        for table, classes in derived.items()
+        for cls, cells in classes.items()
+        for s, (d, u_) in enumerate(zip(cells, used[table][cls]))
+        if d != u_
+    ]
+    shares = class_document(u.shares(u.six), u.shares(u.twelve), cell=np.ndarray.tolist)
+    counts = class_document(u.six.sum(axis=-1), u.twelve.sum(axis=-1), cell=int)
     bands = [
         {
             "band": None if math.isinf(b) else b,

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .metrics import step_window
 from .trace import Trace
 
 __all__ = [
@@ -62,8 +63,6 @@ def utilization(
     trace: Trace, *, threshold: float, t_start: float = 0.0, t_end: float = math.inf
 ) -> Utilization:
     """Tabulate the vectors a run chose (paper 001 Tables 1 and 3-8)."""
-    from .metrics import step_window
-
     k0, k1 = step_window(trace, t_start, t_end)
     d_t = trace.col("reference", "torque_ref")[k0:k1] - trace.col("command", "torque_est")[k0:k1]
     d_psi = trace.col("reference", "flux_ref")[k0:k1] - trace.col("command", "flux_est")[k0:k1]

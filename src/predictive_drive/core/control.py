@@ -271,13 +271,12 @@ class InductionController(PredictiveController):
         # the IM's free response (i_free, ψ_free, a_0) is the prediction model: part of the law
         i = complex(state.i_alpha, state.i_beta)
         m = self._pred
-        m.prepare(i, self.psi_hat, state.omega_m, self._volts)
+        m.prepare(i, self.psi_hat, state.omega_m, self._volts)  # keeps i for _applied
         self.est_torque = m.te
         if self.soft_start:
             return Decision(0 if abs(i) > self.params.soft_start_current else 1, 1.0, NAN, 0)
         return self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
 
     def _applied(self, d: Decision, state: State) -> None:
-        i = complex(state.i_alpha, state.i_beta)
         u_avg = d.fraction * self._volts[d.vector]
-        self.psi_hat = self.psi_hat + self.ts * (u_avg - self._coef.r_s * i)
+        self.psi_hat = self.psi_hat + self.ts * (u_avg - self._coef.r_s * self._pred.i)

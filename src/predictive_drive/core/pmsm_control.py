@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from math import asin, cos, sin, sqrt
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from ..errors import ConfigError
 from .decision import Decision, Machine, PredictiveController
@@ -28,10 +28,13 @@ from .signals import Reference, State
 __all__ = [
     "CANDIDATE_TABLES_FILE",
     "PMSM_STRATEGIES",
+    "FLUX_SIGNS",
+    "TORQUE_SIGNS",
     "CandidateTables",
     "PMSMController",
     "PMSMControllerParams",
     "PMSMPrediction",
+    "class_document",
     "load_candidate_tables",
     "sector",
 ]
@@ -63,21 +66,37 @@ class CandidateTables(NamedTuple):
     source: str = ""
 
 
+#: class keys of the table file: torque-error sign (index t), flux-error sign (index f)
+TORQUE_SIGNS = ("T+", "T-")
+FLUX_SIGNS = ("psi+", "psi-")
+
+
+def class_document(six: Any, twelve: Any, cell: Callable[[Any], Any] = list) -> dict[str, Any]:
+    """Per-class data in the table file's shape: ``six[t][s]`` under ``six_sector`` → ``T±``,
+    ``twelve[t][f][s]`` under ``twelve_sector`` → ``T±psi±``; each entry passed through ``cell``.
+    The candidate tables, and the analysis' utilization tables, are written in this shape."""
+    return {
+        "six_sector": {TORQUE_SIGNS[t]: [cell(c) for c in six[t]] for t in range(2)},
+        "twelve_sector": {
+            TORQUE_SIGNS[t] + FLUX_SIGNS[f]: [cell(c) for c in twelve[t][f]]
+            for t in range(2)
+            for f in range(2)
+        },
+    }
+
+
 def load_candidate_tables(path: str | Path = CANDIDATE_TABLES_FILE) -> CandidateTables:
     """Read candidate tables as written by ``predictive-drive analyze --write-tables``."""
     path = Path(path)
+
+    def sets(cells: list[Any]) -> tuple[tuple[int, ...], ...]:
+        return tuple(tuple(sorted(int(v) for v in cell)) for cell in cells)
+
     try:
         doc = json.loads(path.read_text())
-        six = tuple(
-            tuple(tuple(sorted(int(v) for v in cell)) for cell in doc["six_sector"][key])
-            for key in ("T+", "T-")
-        )
+        six = tuple(sets(doc["six_sector"][t]) for t in TORQUE_SIGNS)
         twelve = tuple(
-            tuple(
-                tuple(tuple(sorted(int(v) for v in cell)) for cell in doc["twelve_sector"][t + f])
-                for f in ("psi+", "psi-")
-            )
-            for t in ("T+", "T-")
+            tuple(sets(doc["twelve_sector"][t + f]) for f in FLUX_SIGNS) for t in TORQUE_SIGNS
         )
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ConfigError(f"{path}: not a candidate table file ({e})") from None
@@ -152,23 +171,23 @@ class PMSMPrediction:
         self.q = (2.0 / 3.0) * u_dc * self.ts / psi
 
     def predict(self, n: int) -> tuple[float, float]:
-        """(T_e(k+1), |ψ_s(k+1)|) if vector ``n`` is applied for Ts (paper 001 eq 1-3)."""
-        return _predict(self, n)
+        """(T_e(k+1), |ψ_s(k+1)|) if vector ``n`` is applied for Ts (paper 001 eq 1-3).
 
-
-def _predict(m: PMSMPrediction, n: int) -> tuple[float, float]:
-    c = m.c
-    if n == 0:
-        r, d1 = 1.0, m.delta
-    else:
-        q = m.q
-        a = VECTOR_ANGLES[n] - m.theta_psi
-        r = math.sqrt(1.0 + q * q + 2.0 * q * math.cos(a))  # eq 1
-        d1 = m.delta + math.asin(q * math.sin(a) / r)  # eq 2's angle
-    psi1 = m.psi * r
-    i_d1 = (psi1 * math.cos(d1) - c.psi_f) / c.l_d
-    i_q1 = psi1 * math.sin(d1) / c.l_q
-    return c.torque_k * i_q1 * (c.psi_f + (c.l_d - c.l_q) * i_d1), psi1
+        The readable form of one candidate; :func:`_argmin` inlines the same arithmetic in its
+        loop (a call per candidate would be a third of the candidate's cost). Tests hold both to
+        the independent vector form ψ(k+1) = ψ(k) + V·Ts."""
+        c = self.c
+        if n == 0:
+            r, d1 = 1.0, self.delta
+        else:
+            q = self.q
+            a = VECTOR_ANGLES[n] - self.theta_psi
+            r = math.sqrt(1.0 + q * q + 2.0 * q * math.cos(a))  # eq 1
+            d1 = self.delta + math.asin(q * math.sin(a) / r)  # eq 2's angle
+        psi1 = self.psi * r
+        i_d1 = (psi1 * math.cos(d1) - c.psi_f) / c.l_d
+        i_q1 = psi1 * math.sin(d1) / c.l_q
+        return c.torque_k * i_q1 * (c.psi_f + (c.l_d - c.l_q) * i_d1), psi1
 
 
 def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: float) -> int:
