@@ -208,9 +208,7 @@ class _View:
 
     def __init__(self, te, psi, theta_psi, threshold=0.6):
         m = PMSMPrediction(PMSMCoefficients.of(SPMSM), TS, threshold, 0.12)
-        m.prepare(0.0, 0.0, 0.0, U_DC)  # i = 0: ψ = ψ_f along d
-        m.te, m.psi, m.theta_psi, m.delta = te, psi, theta_psi, 0.2
-        m.q = (2 / 3) * U_DC * TS / psi
+        m.set(te, psi, 0.2, theta_psi, U_DC)
         self.m = m
 
 

@@ -146,6 +146,7 @@ class PMSMPrediction:
         "theta_psi",
         "q",
         "consts",
+        "args",
     )
 
     def __init__(self, c: PMSMCoefficients, ts: float, threshold: float, t_floor: float) -> None:
@@ -153,22 +154,35 @@ class PMSMPrediction:
         self.ts = ts
         self.threshold = threshold
         self.t_floor = t_floor
-        #: what the candidate loop needs of the parameters, in one tuple (one load per step)
+        #: the parameters the candidate loop needs
         self.consts = (c.psi_f, 1.0 / c.l_d, 1.0 / c.l_q, c.torque_k, c.l_d - c.l_q, t_floor)
 
     def prepare(self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float) -> None:
+        """The estimate from the measured currents, rotor angle and DC link."""
         c = self.c
         co, si = math.cos(theta_e), math.sin(theta_e)
         i_d = i_alpha * co + i_beta * si
         i_q = i_beta * co - i_alpha * si
         psi_d = c.l_d * i_d + c.psi_f
         psi_q = c.l_q * i_q
-        self.te = c.torque_k * i_q * (c.psi_f + (c.l_d - c.l_q) * i_d)
-        psi = math.hypot(psi_d, psi_q)
+        delta = math.atan2(psi_q, psi_d)
+        self.set(
+            c.torque_k * i_q * (c.psi_f + (c.l_d - c.l_q) * i_d),
+            math.hypot(psi_d, psi_q),
+            delta,
+            (theta_e + delta) % TWO_PI,
+            u_dc,
+        )
+
+    def set(self, te: float, psi: float, delta: float, theta_psi: float, u_dc: float) -> None:
+        """Take an estimate as it is (:meth:`prepare` derives one; tests set one by hand)."""
+        self.te = te
         self.psi = psi
-        self.delta = math.atan2(psi_q, psi_d)
-        self.theta_psi = (theta_e + self.delta) % TWO_PI
-        self.q = (2.0 / 3.0) * u_dc * self.ts / psi
+        self.delta = delta
+        self.theta_psi = theta_psi
+        self.q = q = (2.0 / 3.0) * u_dc * self.ts / psi
+        #: what the candidate loop reads, in one tuple: one load per decision
+        self.args = (*self.consts, psi, delta, theta_psi, q, te)
 
     def predict(self, n: int) -> tuple[float, float]:
         """(T_e(k+1), |ψ_s(k+1)|) if vector ``n`` is applied for Ts (paper 001 eq 1-3).
@@ -193,8 +207,7 @@ class PMSMPrediction:
 def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: float) -> int:
     """First strict minimum of eq 5 over V0 and the non-zero vectors ``active`` (ascending; sqrt
     dropped: it keeps the order). V0 leaves ψ and δ as they are, so its prediction is T̂ itself."""
-    pf, ild, ilq, tk, dl, t_floor = m.consts
-    psi, delta, th, q, te = m.psi, m.delta, m.theta_psi, m.q, m.te
+    pf, ild, ilq, tk, dl, t_floor, psi, delta, th, q, te = m.args
     inv_t = 1.0 / (t_ref if t_ref > t_floor else -t_ref if -t_ref > t_floor else t_floor)
     inv_p = 1.0 / psi_ref
     e_t = (te - t_ref) * inv_t
