@@ -16,7 +16,7 @@ from ..errors import ConfigError
 from .decision import Decision, Machine, PredictiveController, Strategy, instantiate
 from .motors import InductionCoefficients, InductionMotor
 from .pmsm_control import PMSM_STRATEGIES, PMSMController, PMSMControllerParams, PMSMPrediction
-from .signals import Reference, State
+from .signals import Reference, State, new_record
 
 __all__ = [
     "A0_FORMS",
@@ -77,22 +77,22 @@ class IMPrediction:
         self.a0_printed = a0_printed
 
     def prepare(self, i: complex, psi: complex, omega_m: float, volts: tuple[complex, ...]) -> None:
-        c = self.c
+        a_ii, b_ip, cw, rs, p, tk, _, _ = self.c
         ts = self.ts
-        wr = c.p * omega_m
+        wr = p * omega_m
         self.i = i
         self.psi = psi
         self.volts = volts
-        cross = psi.real * i.imag - psi.imag * i.real  # Im(conj(ψ) i)
-        dot = psi.real * i.real + psi.imag * i.imag  # Re(conj(ψ) i)
-        self.te = c.torque_k * cross
-        mag2 = psi.real * psi.real + psi.imag * psi.imag
+        pr, pi, ir, ii = psi.real, psi.imag, i.real, i.imag
+        cross = pr * ii - pi * ir  # Im(conj(ψ) i)
+        dot = pr * ir + pi * ii  # Re(conj(ψ) i)
+        self.te = tk * cross
         re_sign = -1.0 if self.a0_printed else 1.0
-        self.a0 = c.torque_k * (c.a_ii * cross + re_sign * wr * dot - wr * mag2 * c.c_w)
-        self.i_free = i + ts * (complex(c.a_ii, wr) * i + complex(c.b_ipsi, -wr * c.c_w) * psi)
-        self.psi_free = psi - ts * c.r_s * i
-        self.gain_i = ts * c.c_w
-        self._z = i - c.c_w * psi
+        self.a0 = tk * (a_ii * cross + re_sign * wr * dot - wr * (pr * pr + pi * pi) * cw)
+        self.i_free = i + ts * (complex(a_ii, wr) * i + complex(b_ip, -wr * cw) * psi)
+        self.psi_free = psi - ts * rs * i
+        self.gain_i = ts * cw
+        self._z = i - cw * psi
 
     def a_u(self, u: complex) -> float:
         """Voltage-dependent part of dT_e/dt, N·m/s per applied vector u (paper 000 eq 10)."""
@@ -114,7 +114,7 @@ class MPTC:
     name = "mptc"
 
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        return Decision(_argmin_full_period(m, torque_ref, flux_ref), 1.0, NAN, 7)
+        return _FULL_PERIOD[_argmin_full_period(m, torque_ref, flux_ref)]
 
 
 class MPTCDB:
@@ -125,9 +125,9 @@ class MPTCDB:
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
         n = _argmin_full_period(m, torque_ref, flux_ref)
         if n == 0:
-            return Decision(0, 1.0, NAN, 7)
+            return _FULL_PERIOD[0]
         t_u = m.deadbeat_time(m.volts[n], torque_ref)
-        return Decision(n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7)
+        return new_record(Decision, (n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7))
 
 
 class DBMPTC:
@@ -164,7 +164,11 @@ class DBMPTC:
             g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
             if g < best:
                 best, best_n, best_t, raw_best = g, n, t_u, t_raw
-        return Decision(best_n, best_t / ts, raw_best, cal)
+        return new_record(Decision, (best_n, best_t / ts, raw_best, cal))
+
+
+#: the decision of a full-period vector chosen among all 7, by vector
+_FULL_PERIOD = tuple(Decision(n, 1.0, NAN, 7) for n in range(7))
 
 
 def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> int:

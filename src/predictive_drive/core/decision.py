@@ -9,13 +9,13 @@ strategies at a step boundary.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Mapping
 from enum import StrEnum
+from time import perf_counter_ns
 from typing import Any, NamedTuple, Protocol
 
 from .inverter import active_then_zero, vector_voltages
-from .signals import Command, Reference, State
+from .signals import Command, Reference, State, new_record
 
 __all__ = ["Decision", "Machine", "PredictiveController", "Strategy", "instantiate"]
 
@@ -106,22 +106,26 @@ class PredictiveController:
             self._u_dc = state.u_dc
             self._volts = vector_voltages(state.u_dc)
         self._observe(state)
-        t0 = time.perf_counter_ns()
+        t0 = perf_counter_ns()
         d = self._decide(state, ref)
-        elapsed = time.perf_counter_ns() - t0
-        pulses, self.switches = active_then_zero(d.vector, d.fraction, self.switches)
+        elapsed = perf_counter_ns() - t0
+        vector, fraction, t_u, cal = d
+        pulses, self.switches = active_then_zero(vector, fraction, self.switches)
         self._applied(d, state)
-        return Command(
-            state.k,
-            state.t,
-            *pulses,
-            self._index,
-            float(d.vector),
-            d.fraction,
-            d.t_u,
-            float(d.cal),
-            self.est_torque,
-            self.est_flux,
-            self.est_flux_angle,
-            float(elapsed),
+        return new_record(
+            Command,
+            (
+                state.k,
+                state.t,
+                *pulses,
+                self._index,
+                float(vector),
+                fraction,
+                t_u,
+                float(cal),
+                self.est_torque,
+                self.est_flux,
+                self.est_flux_angle,
+                float(elapsed),
+            ),
         )

@@ -97,15 +97,11 @@ def active_then_zero(
         return _FULL[state_to_vector(z)], z
     if fraction >= 1.0:
         return _FULL[vector], VECTOR_STATES[vector]
-    kinds, z = _THEN_ZERO[vector]
+    (ka, kb, kc), z = _THEN_ZERO[vector]
     f = fraction
-    g = 1.0 - f
-    da, db, dc = (
-        [(0.0, 1.0), (0.0, f), (f, g), (0.0, 0.0)][kinds[0]],
-        [(0.0, 1.0), (0.0, f), (f, g), (0.0, 0.0)][kinds[1]],
-        [(0.0, 1.0), (0.0, f), (f, g), (0.0, 0.0)][kinds[2]],
-    )
-    return PhasePulses(da[0], db[0], dc[0], da[1], db[1], dc[1]), z
+    delay = (0.0, 0.0, f, 0.0)  # by kind, see _then_zero_kinds
+    duty = (1.0, f, 1.0 - f, 0.0)
+    return PhasePulses(delay[ka], delay[kb], delay[kc], duty[ka], duty[kb], duty[kc]), z
 
 
 def segments(
@@ -123,22 +119,39 @@ def segments(
     inner = {ra, rb, rc, fa, fb, fc}
     inner.discard(0.0)
     inner.discard(1.0)
+    prev = previous[0] * 4 + previous[1] * 2 + previous[2]
+    if not inner:  # one state all period (FCS): each phase high all period or low all period
+        code = (da > 0.0) * 4 + (db > 0.0) * 2 + (dc > 0.0)
+        return [(_CODE_STATE[code], 1.0)], _CODE_STATE[code], 2 * _LEGS[code ^ prev]
+    if len(inner) == 1:  # one edge inside the period (a vector, then a zero vector)
+        t = inner.pop()
+        mid = 0.5 * t
+        c1 = (ra <= mid < fa) * 4 + (rb <= mid < fb) * 2 + (rc <= mid < fc)
+        mid += 0.5
+        c2 = (ra <= mid < fa) * 4 + (rb <= mid < fb) * 2 + (rc <= mid < fc)
+        s2 = _CODE_STATE[c2]
+        if c1 == c2:
+            return [(s2, 1.0)], s2, 2 * _LEGS[c2 ^ prev]
+        return [(_CODE_STATE[c1], t), (s2, 1.0 - t)], s2, 2 * (_LEGS[c1 ^ prev] + _LEGS[c2 ^ c1])
     out: list[tuple[tuple[int, int, int], float]] = []
-    pa, pb, pc = previous
     transitions = 0
     t0 = 0.0
-    for t1 in (*sorted(inner), 1.0) if inner else (1.0,):
+    for t1 in (*sorted(inner), 1.0):
         mid = 0.5 * (t0 + t1)
-        sa, sb, sc = ra <= mid < fa, rb <= mid < fb, rc <= mid < fc
-        changed = (sa != pa) + (sb != pb) + (sc != pc)
-        if changed or not out:
-            transitions += changed
-            pa, pb, pc = int(sa), int(sb), int(sc)
-            out.append(((pa, pb, pc), t1 - t0))
+        code = (ra <= mid < fa) * 4 + (rb <= mid < fb) * 2 + (rc <= mid < fc)
+        if code != prev or not out:
+            transitions += _LEGS[code ^ prev]
+            prev = code
+            out.append((_CODE_STATE[code], t1 - t0))
         else:
             out[-1] = (out[-1][0], out[-1][1] + (t1 - t0))
         t0 = t1
-    return out, (pa, pb, pc), 2 * transitions
+    return out, _CODE_STATE[prev], 2 * transitions
+
+
+#: switching state of the 3-bit code S_a·4 + S_b·2 + S_c, and how many legs differ (popcount)
+_CODE_STATE = tuple(((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8))
+_LEGS = tuple(bin(x).count("1") for x in range(8))
 
 
 #: one vector for the whole period, V0..V7

@@ -7,6 +7,7 @@ load torque (N·m), ``c`` precomputed coefficients of the parameters.
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass, fields
 from typing import NamedTuple
@@ -21,11 +22,16 @@ __all__ = [
     "InductionMotor",
     "PMSMCoefficients",
     "induction_dynamics",
+    "induction_exact",
     "induction_torque",
     "pmsm_dynamics",
     "pmsm_rk4",
     "pmsm_torque",
 ]
+
+
+IMState = tuple[complex, complex, float, float]  #: i_s, ψ_s (αβ), ω_m, θ_m
+Input = tuple[complex, float]  #: u_s (αβ, V), T_L (N·m)
 
 
 def _positive(obj: object, *names: str) -> None:
@@ -148,13 +154,8 @@ def induction_dynamics(
 
 
 def induction_rk4(
-    t: float,
-    x: tuple[complex, complex, float, float],
-    u: tuple[complex, float],
-    c: InductionCoefficients,
-    h: float,
-    n: int,
-) -> tuple[complex, complex, float, float]:
+    t: float, x: IMState, u: Input, c: InductionCoefficients, h: float, n: int
+) -> IMState:
     """RK4 of :func:`induction_dynamics` over [t, t+h] in ``n`` sub-steps, fused for speed.
 
     Same arithmetic as ``plant.rk4(induction_dynamics, ...)`` (a test holds the two together); the
@@ -197,6 +198,55 @@ def induction_rk4(
         psi = psi + sixth * (dp1 + 2.0 * dp2 + 2.0 * dp3 + dp4)
         th = th + sixth * (w + 2.0 * w2 + 2.0 * w3 + w4)
         w = w + sixth * (dw1 + 2.0 * dw2 + 2.0 * dw3 + dw4)
+    return i, psi, w, th
+
+
+_exp, _sqrt = cmath.exp, cmath.sqrt
+
+
+def induction_exact(
+    t: float, x: IMState, u: Input, c: InductionCoefficients, h: float, n: int
+) -> IMState:
+    """The IM over [t, t+h] in ``n`` sub-steps, each solved exactly for ω frozen (SPEC §2.4).
+
+    With ω frozen the electrical model is linear, d[i, ψ]/dt = A·[i, ψ] + B·u_s with
+    A = [[a, b], [-R_s, 0]], a = a_ii + jω_r, b = b_iψ - jω_r/(σL_s). Its equilibrium is
+    i = u_s/R_s, ψ = -(a + R_s c_w)·u_s/(b R_s); the deviation from it decays with
+    e^{Ah} = (e^{λ1 h}(A - λ2 I) - e^{λ2 h}(A - λ1 I))/(λ1 - λ2), λ the roots of λ² - aλ + bR_s.
+    ω is frozen at its sub-step midpoint as predicted from the torque at the start; the mechanics
+    then advance with the mean of the torques at both ends (trapezoid), θ with the mean speed.
+    Agrees with :func:`induction_rk4` to ~1e-6 relative per 50 µs step (a test holds the two
+    together) at about half the cost in CPython.
+    """
+    i, psi, w, th = x
+    u_s, tl = u
+    a_ii, b_ip, cw, rs, p, tk, ij, fb = c
+    dt = h / n
+    half = 0.5 * dt
+    i_eq = u_s / rs
+    te = tk * (psi.real * i.imag - psi.imag * i.real)
+    for _ in range(n):
+        w_mid = w + half * (te - tl - fb * w) * ij
+        wr = p * w_mid
+        a = complex(a_ii, wr)
+        b = complex(b_ip, -wr * cw)
+        d = _sqrt(a * a - 4.0 * rs * b)  # λ1 - λ2, never 0 for R_r > 0
+        l1 = 0.5 * (a + d)
+        l2 = l1 - d
+        psi_eq = -(a + rs * cw) * i_eq / b
+        y1 = i - i_eq
+        y2 = psi - psi_eq
+        by2 = b * y2
+        rsy1 = rs * y1
+        e1 = _exp(l1 * dt) / d
+        e2 = _exp(l2 * dt) / d
+        # (A - λ2 I)·y = [λ1 y1 + b y2, -R_s y1 - λ2 y2] since λ1 + λ2 = a; likewise with λ1
+        i = i_eq + e1 * (l1 * y1 + by2) - e2 * (l2 * y1 + by2)
+        psi = psi_eq - e1 * (rsy1 + l2 * y2) + e2 * (rsy1 + l1 * y2)
+        te1 = tk * (psi.real * i.imag - psi.imag * i.real)
+        w1 = w + dt * (0.5 * (te + te1) - tl - fb * w_mid) * ij
+        th += half * (w + w1)
+        w, te = w1, te1
     return i, psi, w, th
 
 

@@ -1,7 +1,8 @@
 """The drive plant: inverter + machine + mechanics, advanced one control period per command.
 
 Each period is split into the command's piecewise-constant switching segments (SPEC §2.1) and each
-segment is integrated with the integrator passed in (RK4 with sub-steps of at most ``max_substep``).
+segment is integrated with the integrator passed in, in sub-steps of at most ``max_substep`` (the IM's
+exact discretisation for frozen ω, the PMSM's fused RK4).
 """
 
 from __future__ import annotations
@@ -17,11 +18,11 @@ from .motors import (
     InductionCoefficients,
     InductionMotor,
     PMSMCoefficients,
-    induction_rk4,
+    induction_exact,
     pmsm_rk4,
 )
 from .profiles import StepProfile
-from .signals import Command, State
+from .signals import Command, State, new_record
 
 __all__ = ["InductionPlant", "InverterPlant", "PMSMPlant", "rk4"]
 
@@ -59,7 +60,7 @@ class InverterPlant:
     """A machine on a two-level inverter with a stepped load (SPEC §2.1, §2.4).
 
     ``step(command)`` applies command k for one period Ts and returns state k+1: each switching segment
-    is integrated with ``integrator`` (default: the machine's fused RK4) in sub-steps of at most
+    is integrated with ``integrator`` (default: the machine's own, see above) in sub-steps of at most
     ``max_substep``. Subclasses name the machine's coefficients, initial state and integrator, and
     say what the state publishes. Initial switches: 000.
     """
@@ -87,6 +88,7 @@ class InverterPlant:
         self._integrate = integrator or type(self).default_integrator
         self._volts = {s: u_dc * clarke(*s) for s in _ALL_STATES}
         self.k = 0
+        self.load = self._load.at(0)  #: N·m, load torque during the coming period k
         self.x: tuple = self.x0
         self.switches = (0, 0, 0)
         self._transitions = 0
@@ -98,20 +100,23 @@ class InverterPlant:
     def state(self) -> State:
         """The present state k as published (measured channels + truth)."""
         i, w, the, te, psi, th = self._outputs()
-        return State(
-            float(self.k),
-            self.k * self.ts,
-            i.real,
-            i.imag,
-            w,
-            the,
-            self.u_dc,
-            te,
-            psi.real,
-            psi.imag,
-            th,
-            self._load.at(self.k),
-            float(self._transitions),
+        return new_record(
+            State,
+            (
+                float(self.k),
+                self.k * self.ts,
+                i.real,
+                i.imag,
+                w,
+                the,
+                self.u_dc,
+                te,
+                psi.real,
+                psi.imag,
+                th,
+                self.load,
+                float(self._transitions),
+            ),
         )
 
     def step(self, command: Command) -> State:
@@ -120,7 +125,7 @@ class InverterPlant:
         segs, self.switches, self._transitions = segments(command[2:8], self.switches)
         ts = self.ts
         t = self.k * ts
-        load = self._load.at(self.k)  # constant over the period
+        load = self.load  # constant over the period
         x = self.x
         volts, coef, integrate, max_sub = (
             self._volts,
@@ -135,6 +140,7 @@ class InverterPlant:
             t += h
         self.x = x
         self.k += 1
+        self.load = self._load.at(self.k)
         return self.state()
 
 
@@ -145,7 +151,7 @@ class InductionPlant(InverterPlant):
     motor: InductionMotor
     coefficients = InductionCoefficients
     x0 = (0j, 0j, 0.0, 0.0)
-    default_integrator = staticmethod(induction_rk4)
+    default_integrator = staticmethod(induction_exact)
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
         i, psi, w, th = self.x

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ..errors import ConfigError
 from .profiles import StepProfile
-from .signals import Reference, State
+from .signals import Reference, State, new_record
 
 __all__ = ["SpeedPI", "SpeedPIParams"]
 
@@ -78,4 +78,4 @@ class SpeedPI:
             out, saturated = raw, False
         if not saturated:
             self.integral += p.ki * self.ts * e
-        return Reference(float(k + 1), (k + 1) * self.ts, out, p.flux_ref, at(k + 1))
+        return new_record(Reference, (float(k + 1), (k + 1) * self.ts, out, p.flux_ref, at(k + 1)))
