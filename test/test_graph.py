@@ -103,20 +103,27 @@ def test_graph_run_equals_inprocess_bit_for_bit(tmp_path):
 
 
 def test_composed_run_equals_inprocess(tmp_path):
+    """Composed: lock-step topics delivered in-process (LocalBus), same sequences bit for bit."""
     c = api.run("im_short", duration=0.05, engine="composed", out=tmp_path / "c")
     i = api.run("im_short", duration=0.05, engine="inprocess", out=tmp_path / "i")
-    a, _ = read_bag(c.bag)
+    a, info = read_bag(c.bag)
     b, _ = read_bag(i.bag)
+    assert info.complete and a.steps == b.steps == 1000
     np.testing.assert_array_equal(a.state, b.state)
+    np.testing.assert_array_equal(a.reference, b.reference)
+    np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
 
 
-def test_timed_switch_through_parameter_service(tmp_path):
-    # the request goes out when /clock passes 0.05 s; it lands some steps later (service latency),
-    # at a step boundary, and the recording shows where
+@pytest.mark.parametrize("engine", ["ros", "composed"])
+def test_timed_switch_through_parameter_service(tmp_path, engine):
+    """The request goes out when the launcher's /clock watch sees 0.05 s; it lands some steps later
+    (service latency), at a step boundary, and the recording shows where. Composed, the watch is
+    the process's one outside (DDS) subscriber and the service is answered between local delivery
+    batches."""
     r = api.run(
         "im_short",
         duration=0.4,
-        engine="ros",
+        engine=engine,
         strategy="mptc",
         switches=[(0.05, "db_mptc")],
         out=tmp_path / "sw",
@@ -127,6 +134,7 @@ def test_timed_switch_through_parameter_service(tmp_path):
     assert names[s[0]] == "mptc" and names[s[-1]] == "db_mptc"
     first = int(np.flatnonzero(s == names.index("db_mptc"))[0])
     assert first >= 1000  # not before the requested 0.05 s
+    assert np.all(s[:first] == names.index("mptc"))
     assert np.all(s[first:] == names.index("db_mptc"))  # one clean switch at a step boundary
 
 

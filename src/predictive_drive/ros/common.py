@@ -8,6 +8,7 @@ import os
 import signal
 import sys
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -26,6 +27,7 @@ from ..interface import TOPICS, Qos
 
 __all__ = [
     "DriveNode",
+    "LocalBus",
     "executor",
     "hold_signals",
     "qos",
@@ -68,13 +70,67 @@ def executor(context: Any = None) -> Any:
     return EventsExecutor(context=context)
 
 
+class LocalBus:
+    """Delivery between the nodes of one process without DDS — what rclcpp's intra-process
+    communication does for composed nodes; rclpy has none.
+
+    A subscription made through the bus is a local callback; a publisher's message is queued for
+    every local subscriber of its topic (FIFO, the order DDS would deliver a lock-step graph's
+    messages in) and still goes out over DDS whenever an outside subscriber is matched (a tool, the
+    launcher's /clock watch). :func:`spin_nodes` runs the queue between executor spins.
+    """
+
+    def __init__(self) -> None:
+        self.subscribers: dict[str, list[Callable[[bytes], None]]] = {}
+        self.queue: deque[tuple[Callable[[bytes], None], bytes]] = deque()
+
+    def subscribe(self, topic: str, callback: Callable[[bytes], None]) -> None:
+        self.subscribers.setdefault(topic, []).append(callback)
+
+    def count(self, topic: str) -> int:
+        return len(self.subscribers.get(topic, ()))
+
+    def run(self, budget: int) -> int:
+        """Deliver up to ``budget`` queued messages; returns how many were delivered."""
+        queue = self.queue
+        n = 0
+        while queue and n < budget:
+            callback, data = queue.popleft()
+            callback(data)
+            n += 1
+        return n
+
+
+class Outlet:
+    """A publisher that also serves the local subscribers of its topic (see :class:`LocalBus`)."""
+
+    def __init__(self, pub: Any, bus: LocalBus) -> None:
+        self.pub = pub
+        self.topic_name = pub.topic_name
+        self._local = bus.subscribers.setdefault(pub.topic_name, [])
+        self._queue = bus.queue
+
+    def publish(self, data: bytes) -> None:
+        for callback in self._local:
+            self._queue.append((callback, data))
+        if self.pub.get_subscription_count():  # only outside subscribers are DDS ones
+            self.pub.publish(data)
+
+    def get_subscription_count(self) -> int:
+        return len(self._local) + self.pub.get_subscription_count()
+
+    def wait_for_all_acked(self, timeout: Any) -> bool:
+        return bool(self.pub.wait_for_all_acked(timeout))
+
+
 class DriveNode(Node):
     """Base of the four nodes: declares the shared and own-section parameters from the scenario
     dataclasses (read-only except ``strategy``) and validates them with the scenario loader."""
 
     section: str = ""
 
-    def __init__(self, name: str, **kwargs: Any) -> None:
+    def __init__(self, name: str, *, bus: LocalBus | None = None, **kwargs: Any) -> None:
+        self.bus = bus
         kwargs.setdefault("namespace", NAMESPACE)
         super().__init__(name, **kwargs)
         if not self.has_parameter("use_sim_time"):
@@ -143,10 +199,15 @@ class DriveNode(Node):
     # -- lock-step helpers --------------------------------------------------------------------
     def publisher(self, key: str) -> Any:
         t = TOPICS[key]
-        return self.create_publisher(_msg_class(t.type), t.name, qos(t.qos))
+        pub = self.create_publisher(_msg_class(t.type), t.name, qos(t.qos))
+        return pub if self.bus is None else Outlet(pub, self.bus)
 
     def subscription(self, key: str, callback: Callable[[bytes], None]) -> Any:
+        """Raw (serialized) subscription; through the process's :class:`LocalBus` if it has one."""
         t = TOPICS[key]
+        if self.bus is not None:
+            self.bus.subscribe(t.name, callback)
+            return None
         return self.create_subscription(_msg_class(t.type), t.name, callback, qos(t.qos), raw=True)
 
     def wait_matched(self, pub: Any, count: int, what: str) -> None:
@@ -213,11 +274,17 @@ def hold_signals() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
-def spin_nodes(nodes: list[DriveNode]) -> int:
+#: local deliveries between executor polls (~70 steps of the drive graph)
+_BATCH = 500
+
+
+def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
     """Spin until every node has finished or one fails; 0 on success, 1 on a node failure.
 
     The executor runs in C++ until a node signals (finished / failed) or 0.1 s pass; then the
-    watchdogs run. Every spin has a finite timeout (see :func:`executor`).
+    watchdogs run. Every spin has a finite timeout (see :func:`executor`). With a ``bus``, its
+    queued messages are delivered in batches, the executor (parameter services, outside traffic)
+    polled between them.
     """
     from rclpy.task import Future
 
@@ -233,7 +300,10 @@ def spin_nodes(nodes: list[DriveNode]) -> int:
         ex.add_node(n)
     try:
         while rclpy.ok():
-            ex.spin_until_future_complete(done, timeout_sec=0.1)
+            if bus is not None and bus.run(_BATCH):
+                ex.spin_until_future_complete(done, timeout_sec=0.0)
+            else:
+                ex.spin_until_future_complete(done, timeout_sec=0.1)
             for n in nodes:
                 n.check()
             notify()

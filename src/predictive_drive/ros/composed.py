@@ -8,7 +8,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 
 from ..errors import ConfigError, GraphError
-from .common import hold_signals, spin_nodes
+from .common import LocalBus, hold_signals, spin_nodes
 from .nodes import NODE_CLASSES
 
 __all__ = ["main"]
@@ -20,9 +20,10 @@ def main(args: list[str] | None = None) -> int:
     code = 0
     try:
         # logger first so it is listening before the plant looks for its peers
+        bus = LocalBus()
         for name in ("metrics_logger", "torque_controller", "speed_pi", "plant"):
-            nodes.append(NODE_CLASSES[name]())
-        code = spin_nodes(nodes)
+            nodes.append(NODE_CLASSES[name](bus=bus))
+        code = spin_nodes(nodes, bus)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
     except (ConfigError, GraphError) as e:
