@@ -67,6 +67,7 @@ class IMPrediction:
         "psi_free",
         "gain_i",
         "volts",
+        "active",
         "_z",
     )
 
@@ -75,6 +76,7 @@ class IMPrediction:
         self.ts = ts
         self.lam = lam
         self.a0_printed = a0_printed
+        self.volts: tuple[complex, ...] = ()
 
     def prepare(self, i: complex, psi: complex, omega_m: float, volts: tuple[complex, ...]) -> None:
         a_ii, b_ip, cw, rs, p, tk, _, _ = self.c
@@ -82,7 +84,10 @@ class IMPrediction:
         wr = p * omega_m
         self.i = i
         self.psi = psi
-        self.volts = volts
+        if volts is not self.volts:
+            self.volts = volts
+            #: (n, V_n, Re V_n, Im V_n) of the active vectors
+            self.active = tuple((n, v, v.real, v.imag) for n, v in enumerate(volts) if n)
         pr, pi, ir, ii = psi.real, psi.imag, i.real, i.imag
         cross = pr * ii - pi * ir  # Im(conj(ψ) i)
         dot = pr * ir + pi * ii  # Re(conj(ψ) i)
@@ -145,15 +150,13 @@ class DBMPTC:
         tk = m.c.torque_k
         z = m._z
         zr, zi = z.real, z.imag
-        volts = m.volts
         # V0: applied for the whole period, t_u = Ts
         best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free))
         best_n, best_t = 0, ts
         raw_best = ts
         cal = 1
-        for n in range(1, 7):
-            u = volts[n]
-            au = tk * (u.real * zi - u.imag * zr)  # m.a_u(u), inlined
+        for n, u, ur, ui in m.active:
+            au = tk * (ur * zi - ui * zr)  # m.a_u(u), inlined
             t_raw = num / au if au != 0.0 else (math.copysign(INF, num) if num else INF)
             if t_raw < 0.0:
                 continue  # drives the torque the wrong way: discarded, not predicted

@@ -120,7 +120,7 @@ class InverterPlant:
         )
 
     def step(self, command: Command) -> State:
-        if int(command.k) != self.k:
+        if command[0] != self.k:  # k as float
             raise ValueError(f"plant is at step {self.k} but got the command for step {command.k}")
         segs, self.switches, self._transitions = segments(command[2:8], self.switches)
         ts = self.ts
