@@ -40,6 +40,14 @@ def descendants(pid: int) -> list[int]:
     return out
 
 
+def ended(pid: int) -> bool:
+    """Gone, or a zombie waiting for whoever reaps orphans here."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
 def node_pids(line: str) -> dict[str, int]:
     return {n: int(p) for n, p in re.findall(r"(\w+) pid (\d+)", line)}
 
@@ -162,28 +170,47 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     os.kill(p.pid, signal.SIGINT)  # Ctrl-C
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err
-    for pid in nodes.values():
-        assert not Path(f"/proc/{pid}").exists() or "Z" in Path(f"/proc/{pid}/stat").read_text()
+    assert all(ended(pid) for pid in nodes.values())
     tr, info = read_bag(bag)
     assert info.complete  # the logger closed it on SIGINT
     s = tr.col("command", "strategy").astype(int)
     assert tr.strategy_names[s[0]] == "mptc" and tr.strategy_names[s[-1]] == "db_mptc"
 
 
-def test_killed_peer_ends_run_with_clear_error_and_readable_bag(cli_run, tmp_path):
-    bag = tmp_path / "killed"
+def started_recording(cli_run, bag: Path) -> tuple[subprocess.Popen[str], dict[str, int]]:
+    """Start a 4 s im_short run into ``bag``; return (launcher, node PIDs) once it records."""
     p, line = cli_run("im_short", "--duration", "4", "--out", str(bag))
-    nodes = node_pids(line)
     deadline = time.monotonic() + 60
     while not (bag / "metadata.yaml").exists() and time.monotonic() < deadline:
         time.sleep(0.1)
+    return p, node_pids(line)
+
+
+def test_killed_peer_ends_run_with_clear_error_and_readable_bag(cli_run, tmp_path):
+    bag = tmp_path / "killed"
+    p, nodes = started_recording(cli_run, bag)
     time.sleep(1.0)  # let it run a little
     os.kill(nodes["torque_controller"], signal.SIGKILL)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 2
     assert "node torque_controller" in err and "killed by signal 9" in err
-    for pid in nodes.values():
-        assert not Path(f"/proc/{pid}").exists()
+    assert all(ended(pid) for pid in nodes.values())
+    tr, info = read_bag(bag)
+    assert info.complete and tr.steps > 0
+
+
+def test_nodes_of_a_launcher_killed_outright_end_themselves(cli_run, tmp_path):
+    """SIGKILL on the launcher leaves it no chance to stop its children: they notice they were
+    orphaned, end the run themselves and the logger closes the bag."""
+    bag = tmp_path / "orphaned"
+    p, nodes = started_recording(cli_run, bag)
+    time.sleep(0.5)
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=10)
+    deadline = time.monotonic() + 30
+    while not all(ended(pid) for pid in nodes.values()):
+        assert time.monotonic() < deadline, "orphaned node processes did not end"
+        time.sleep(0.1)
     tr, info = read_bag(bag)
     assert info.complete and tr.steps > 0
 

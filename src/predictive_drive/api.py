@@ -390,12 +390,12 @@ def controller_replay(
     Each run's recorded states and references are fed again through a fresh controller. Two
     figures per run, both per step and the median over ``repeats``: ``hot_ns`` times the strategy's
     decisions alone in a tight loop over the recorded estimates (where the estimate is a function
-    of the state: PMSM) — the paper's method — less the same loop without the decision (the
-    harness's own cost, the same for every strategy, timed right after it); ``loop_ns`` sums the
-    per-step ``compute_ns`` of the
-    controller stepping through the run (every engine's figure, caches cooled by the rest of each
-    step). The runs are replayed side by side, ``chunk`` steps of each in turn, so a slow spell
-    of this noisy machine hits all of them alike; ratios are per repeat against the first bag,
+    of the state: PMSM) — the paper's method — less the harness's own cost per case (the same loop
+    without the decision, timed after each chunk; the median over chunks, so a preempted one
+    cannot eat into the decision time); ``loop_ns`` sums the per-step ``compute_ns`` of the controller
+    stepping through the run (every engine's figure, caches cooled by the rest of each step).
+    The runs are replayed side by side, ``chunk`` steps of each in turn, so a slow spell of this
+    noisy machine hits all of them alike; ratios are per repeat against the first bag,
     then the median. Also checks that every replay decides as recorded."""
     from .core.runner import build_controller
     from .core.signals import Reference, State
@@ -417,6 +417,7 @@ def controller_replay(
     hot: list[list[float]] = [[] for _ in runs]
     identical = [True] * len(runs)
     longest = max(len(r[1]) for r in runs)
+    harness: list[float] = []  # ns per case of the bare timing loop, per chunk
     for _ in range(repeats):
         ctrls = [build_controller(sc.controller, ts=sc.ts) for sc, *_ in runs]
         loop_t = [0.0] * len(runs)
@@ -441,11 +442,15 @@ def controller_replay(
                     t1 = time.perf_counter_ns()
                     for _m, _t, _p in part:  # the harness alone: same unpacking, no decision
                         pass
-                    hot_t[j] += 2 * t1 - t0 - time.perf_counter_ns()
+                    harness.append((time.perf_counter_ns() - t1) / len(part))
+                    hot_t[j] += t1 - t0
         for j, (_, states, _, recorded, inputs) in enumerate(runs):
             loop[j].append(loop_t[j] / len(states))
             hot[j].append(hot_t[j] / len(states) if inputs is not None else math.nan)
             identical[j] = identical[j] and bool(np.array_equal(np.asarray(vectors[j]), recorded))
+
+    per_case = float(np.median(harness)) if harness else 0.0
+    hot = [[t - per_case for t in h] for h in hot]  # NaN stays NaN
 
     def ratio(times: list[float], base: list[float]) -> float:
         return float(np.median(np.asarray(times) / np.asarray(base)))

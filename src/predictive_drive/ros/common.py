@@ -24,6 +24,7 @@ from ..core.control import Machine
 from ..core.scenario import RunParams, Scenario
 from ..errors import ConfigError, GraphError
 from ..interface import TOPICS, Qos
+from .graph import LAUNCHER_ENV
 
 __all__ = [
     "DriveNode",
@@ -33,6 +34,9 @@ __all__ = [
     "qos",
     "spin_node",
 ]
+
+#: s a closing process may take (bag summary, node and context teardown) before SIGALRM ends it
+CLOSE_TIMEOUT = 30
 
 #: wall-clock bounds (s) every node declares besides the scenario
 RUNTIME_PARAMS = {
@@ -269,9 +273,11 @@ def spin_node(
 def hold_signals() -> None:
     """From here on the process is closing: a second SIGINT/SIGTERM (or one still pending after
     rclpy's own handler shut the context down) must not raise KeyboardInterrupt in the middle of
-    closing the bag. The launcher still escalates to SIGKILL if closing hangs."""
+    closing the bag. The launcher still escalates to SIGKILL if closing hangs; without a launcher
+    (or with one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.alarm(CLOSE_TIMEOUT)
 
 
 #: local deliveries between executor polls (~70 steps of the drive graph)
@@ -298,6 +304,7 @@ def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
     for n in nodes:
         n.notify = notify
         ex.add_node(n)
+    launcher = int(os.environ.get(LAUNCHER_ENV, "0"))
     try:
         while rclpy.ok():
             if bus is not None and bus.run(_BATCH):
@@ -306,6 +313,8 @@ def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
                 ex.spin_until_future_complete(done, timeout_sec=0.1)
             for n in nodes:
                 n.check()
+            if launcher and os.getppid() != launcher and not nodes[0].failure:
+                nodes[0].fail(f"the launcher (pid {launcher}) is gone; ending the run")
             notify()
             if any(n.failure for n in nodes):
                 return 1

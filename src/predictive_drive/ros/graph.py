@@ -22,6 +22,10 @@ from typing import IO, Any
 from ..core.scenario import Scenario
 from ..errors import GraphError
 
+#: set by the launcher to its PID for its children: a node whose parent is no longer that process
+#: (the launcher was killed outright, e.g. SIGKILL, and could not stop them) ends the run itself
+LAUNCHER_ENV = "PREDICTIVE_DRIVE_LAUNCHER_PID"
+
 __all__ = ["NODES", "isolated_domain", "ros_env", "run_graph", "stop_processes"]
 
 NODES = ("metrics_logger", "torque_controller", "speed_pi", "plant")
@@ -56,6 +60,7 @@ def ros_env(domain: int) -> dict[str, str]:
     env["ROS_DOMAIN_ID"] = str(domain)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONUNBUFFERED"] = "1"
+    env[LAUNCHER_ENV] = str(os.getpid())  # nodes end themselves if this process dies
     # the PyPI wheels do not set it; the ament index lives under the venv's share/
     prefixes = [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
     if sys.prefix not in prefixes:
