@@ -80,6 +80,14 @@ def cli_run(tmp_path):
         p.wait(timeout=10)
 
 
+def assert_same_run(a, b) -> None:
+    """Two traces hold the same state, reference and command sequences bit for bit (the measured
+    compute_ns aside)."""
+    np.testing.assert_array_equal(a.state, b.state)
+    np.testing.assert_array_equal(a.reference, b.reference)
+    np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
+
+
 def test_graph_run_equals_inprocess_bit_for_bit(tmp_path):
     before = set(descendants(os.getpid()))
     ros = api.run("im_short", duration=0.1, engine="ros", out=tmp_path / "ros")
@@ -87,9 +95,7 @@ def test_graph_run_equals_inprocess_bit_for_bit(tmp_path):
     a, info = read_bag(ros.bag)
     b, _ = read_bag(inp.bag)
     assert info.complete and a.steps == b.steps == 2000
-    np.testing.assert_array_equal(a.state, b.state)
-    np.testing.assert_array_equal(a.reference, b.reference)
-    np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])  # compute_ns aside
+    assert_same_run(a, b)
     assert ros.metrics.t_rmse == inp.metrics.t_rmse
     # the recording holds every topic, decodable by the independent reader
     from rosbags.highlevel import AnyReader
@@ -117,9 +123,7 @@ def test_composed_run_equals_inprocess(tmp_path):
     a, info = read_bag(c.bag)
     b, _ = read_bag(i.bag)
     assert info.complete and a.steps == b.steps == 1000
-    np.testing.assert_array_equal(a.state, b.state)
-    np.testing.assert_array_equal(a.reference, b.reference)
-    np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
+    assert_same_run(a, b)
 
 
 @pytest.mark.parametrize("engine", ["ros", "composed"])
@@ -251,8 +255,7 @@ def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path):
     assert np.all(cal[:first] == 7) and cal[first:].mean() < 3
     sc, _ = api.prepare("ipmsm_short", strategy="mptc")
     ref = run_inprocess(sc, switches=[(first, "simplified3")])
-    np.testing.assert_array_equal(tr.state, ref.state)
-    np.testing.assert_array_equal(tr.command[:, :-1], ref.command[:, :-1])
+    assert_same_run(tr, ref)
 
 
 def test_controller_node_rejects_a_strategy_of_another_machine():

@@ -9,7 +9,8 @@ import signal
 import sys
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import rclpy
@@ -30,8 +31,9 @@ __all__ = [
     "DriveNode",
     "LocalBus",
     "executor",
-    "hold_signals",
+    "closing",
     "qos",
+    "spin_main",
     "spin_node",
 ]
 
@@ -246,38 +248,54 @@ def spin_node(
     args: list[str] | None = None,
 ) -> int:
     """Jazzy main pattern around one node; returns the process exit code."""
+    return spin_main(lambda _bus: [make()], args=args)
+
+
+def spin_main(
+    make: Callable[[LocalBus | None], list[DriveNode]],
+    *,
+    args: list[str] | None = None,
+    bus: LocalBus | None = None,
+) -> int:
+    """Jazzy main pattern: init, ``make(bus)`` the nodes, spin them, close them however the run
+    ends (the logger closes its bag), shut down. Returns the process exit code."""
     rclpy.init(args=args)
-    node: DriveNode | None = None
+    nodes: list[DriveNode] = []
     code = 0
     try:
-        node = make()
-        code = spin_nodes([node])
+        nodes = make(bus)
+        code = spin_nodes(nodes, bus)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
     except (ConfigError, GraphError) as e:
         print(f"{e}", file=sys.stderr)
         code = 2
     finally:
-        hold_signals()
-        if node is not None:
-            if node.failure:
-                print(node.failure, file=sys.stderr)
-            close = getattr(node, "close", None)
-            if close is not None:
-                close()  # the logger closes its bag however the run ends
-            node.destroy_node()
-        rclpy.try_shutdown()
+        with closing():
+            for n in nodes:
+                if n.failure:
+                    print(n.failure, file=sys.stderr)
+                close = getattr(n, "close", None)
+                if close is not None:
+                    close()
+                n.destroy_node()
+            rclpy.try_shutdown()
     return code
 
 
-def hold_signals() -> None:
-    """From here on the process is closing: a second SIGINT/SIGTERM (or one still pending after
-    rclpy's own handler shut the context down) must not raise KeyboardInterrupt in the middle of
-    closing the bag. The launcher still escalates to SIGKILL if closing hangs; without a launcher
-    (or with one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT."""
+@contextmanager
+def closing() -> Iterator[None]:
+    """The process is closing: a second SIGINT/SIGTERM (or one still pending after rclpy's own
+    handler shut the context down) must not raise KeyboardInterrupt in the middle of closing the
+    bag. The launcher still escalates to SIGKILL if closing hangs; without a launcher (or with
+    one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     signal.alarm(CLOSE_TIMEOUT)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
 
 
 #: local deliveries between executor polls (~70 steps of the drive graph)
