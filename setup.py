@@ -15,7 +15,10 @@ setup(
     python_requires=">=3.10",
     package_dir={"": "src"},
     packages=find_packages("src"),
-    package_data={f"{PACKAGE}.core": ["candidate_tables.json"]},
+    package_data={
+        f"{PACKAGE}.core": ["candidate_tables.json"],
+        f"{PACKAGE}.ros": ["fastdds_profiles.xml"],
+    },
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -34,7 +37,7 @@ setup(
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
                  "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1"],
     },
-    zip_safe=True,
+    zip_safe=False,  # the nodes hand Fast DDS the path of ros/fastdds_profiles.xml
     entry_points={
         "console_scripts": [
             "predictive-drive = predictive_drive.cli:main",

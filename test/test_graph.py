@@ -17,6 +17,7 @@ import pytest
 from predictive_drive import api
 from predictive_drive.bag import read_bag
 from predictive_drive.errors import GraphError
+from predictive_drive.ros.graph import CPUS_ENV, FASTDDS_PROFILES, cpu_plan, ros_env
 
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
 
@@ -171,6 +172,7 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     assert ro.returncode == 2 and "read-only" in ro.stderr.lower()
     time.sleep(0.5)
     nodes = node_pids(line)
+    assert_placed(nodes)
     os.kill(p.pid, signal.SIGINT)  # Ctrl-C
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err
@@ -179,6 +181,71 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     assert info.complete  # the logger closed it on SIGINT
     s = tr.col("command", "strategy").astype(int)
     assert tr.strategy_names[s[0]] == "mptc" and tr.strategy_names[s[-1]] == "db_mptc"
+
+
+def assert_placed(nodes: dict[str, int]) -> None:
+    """Every thread of every node process keeps to the CPU of the launcher's plan, and the nodes
+    run with the project's Fast DDS profile, which Fast DDS parses without error."""
+    plan = cpu_plan("paired")
+    for name, pid in nodes.items():
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            status = (task / "status").read_text()
+            allowed = re.search(r"Cpus_allowed_list:\s*(\S+)", status).group(1)
+            if plan:
+                assert allowed == plan[name], (name, task.name, allowed)
+        environ = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+        assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ
+
+
+def test_cpu_plan_pairs_the_lock_step_partners():
+    assert cpu_plan("paired", [2, 5, 7]) == {
+        "plant": "2",
+        "torque_controller": "2",
+        "speed_pi": "5",
+        "metrics_logger": "5",
+    }
+    assert cpu_plan("paired", [3]) == {}  # one CPU: nothing to place
+    assert cpu_plan("none", [0, 1]) == {}
+    with pytest.raises(GraphError, match="--affinity: 'spread' is not one of paired, none"):
+        cpu_plan("spread", [0, 1])
+
+
+def test_node_process_keeps_to_the_cpus_it_is_given():
+    code = "import os; from predictive_drive.ros.common import keep_to_cpus; keep_to_cpus(); "
+    code += "print(sorted(os.sched_getaffinity(0)))"
+    first = min(os.sched_getaffinity(0))
+    ok = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**os.environ, CPUS_ENV: str(first)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert ok.stdout.strip() == f"[{first}]", ok.stderr
+    bad = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**os.environ, CPUS_ENV: "0,x"},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert bad.returncode == 1
+    assert f"{CPUS_ENV}='0,x': cannot keep to these CPUs" in bad.stderr
+
+
+def test_fastdds_accepts_the_profile():
+    """Fast DDS reports a profile it cannot parse on stderr and carries on; this one it takes."""
+    code = "import rclpy; rclpy.init(); n = rclpy.create_node('profile_check'); "
+    code += "from std_msgs.msg import Float64MultiArray as M; n.create_publisher(M, 'x', 10); "
+    code += "n.destroy_node(); rclpy.shutdown(); print('ok')"
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        env=ros_env(int(os.environ["ROS_DOMAIN_ID"])),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.stdout.strip() == "ok" and "XMLPARSER" not in r.stderr, r.stderr
 
 
 def started_recording(cli_run, bag: Path) -> tuple[subprocess.Popen[str], dict[str, int]]:

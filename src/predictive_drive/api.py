@@ -152,8 +152,11 @@ def run(
     out: str | Path | None = None,
     switches: Sequence[tuple[float, str]] = (),
     progress: Callable[[int, int], None] | None = None,
+    affinity: str = "paired",
 ) -> RunResult:
-    """Run a scenario on an engine, record it, and evaluate the recording."""
+    """Run a scenario on an engine, record it, and evaluate the recording. ``affinity``: CPU
+    placement of the ``ros`` engine's node processes (``paired`` | ``none``, see
+    :func:`predictive_drive.ros.graph.cpu_plan`)."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     sc, text = prepare(scenario, strategy=strategy, duration=duration)
@@ -166,7 +169,14 @@ def run(
     else:
         from .ros.graph import run_graph  # rclpy only when a ROS engine is asked for
 
-        run_graph(sc, bag, composed=(engine == "composed"), switches=switches, progress=cb)
+        run_graph(
+            sc,
+            bag,
+            composed=(engine == "composed"),
+            switches=switches,
+            progress=cb,
+            affinity=affinity,
+        )
     wall = time.perf_counter() - t0
     metrics, trace_steps, _ = evaluate(bag)
     return RunResult(sc.name, sc.controller.strategy, engine, trace_steps, bag, wall, metrics)
@@ -544,7 +554,9 @@ def analyze(
     return out
 
 
-def graph_rate(engine: str, *, short: float = 0.1, long: float = 1.0) -> dict[str, float]:
+def graph_rate(
+    engine: str, *, short: float = 0.1, long: float = 1.0, affinity: str = "paired"
+) -> dict[str, float]:
     """Steps/s of a graph engine with recording on, start-up excluded: two runs of different
     length, rate = Δsteps / Δwall."""
     import tempfile
@@ -558,6 +570,7 @@ def graph_rate(engine: str, *, short: float = 0.1, long: float = 1.0) -> dict[st
                 duration=d,
                 engine=engine,
                 out=Path(tmp) / f"{engine}_{d}",
+                affinity=affinity,
             )
             walls[d] = (r.steps, r.wall_s)
     (n0, w0), (n1, w1) = walls[short], walls[long]
@@ -600,8 +613,12 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str
         )
         out["inprocess_recorded_steps_per_s"] = n / (time.perf_counter() - t0)
     if ros:
-        for engine, key in (("ros", "ros_steps_per_s"), ("composed", "composed_steps_per_s")):
-            g = graph_rate(engine)
+        for engine, affinity, key in (
+            ("ros", "paired", "ros_steps_per_s"),
+            ("ros", "none", "ros_unpinned_steps_per_s"),
+            ("composed", "paired", "composed_steps_per_s"),
+        ):
+            g = graph_rate(engine, affinity=affinity)
             out[key] = g["steps_per_s"]
             out[key.replace("steps_per_s", "startup_s")] = g["startup_s"]
     return out

@@ -10,6 +10,7 @@ from typing import Any
 
 from . import __version__, api
 from .errors import PredictiveDriveError
+from .ros.graph import AFFINITIES
 
 __all__ = ["main"]
 
@@ -93,6 +94,7 @@ def cmd_run(a: argparse.Namespace) -> int:
             out=a.out,
             switches=a.switch or (),
             progress=update,
+            affinity=a.affinity,
         )
     finally:
         close()
@@ -233,9 +235,13 @@ def cmd_bench(a: argparse.Namespace) -> int:
         f"({d['core_steps_per_s'] / rt:.2f}x real time)"
     )
     print(f"in-process with MCAP recording: {d['inprocess_recorded_steps_per_s']:,.0f} steps/s")
-    for k in ("ros_steps_per_s", "composed_steps_per_s"):
+    whats = {
+        "ros_steps_per_s": "four processes, paired CPUs, recording on",
+        "ros_unpinned_steps_per_s": "four processes, --affinity none, recording on",
+        "composed_steps_per_s": "one process",
+    }
+    for k, what in whats.items():
         if k in d:
-            what = "four processes, recording on" if k.startswith("ros") else "one process"
             print(
                 f"{k} ({what}): {d[k]:,.0f} steps/s ({d[k] / rt:.2f}x real time; start-up "
                 f"{d[k.replace('steps_per_s', 'startup_s')]:.1f} s excluded)"
@@ -281,6 +287,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_const",
         const="composed",
         help="same as --engine composed",
+    )
+    r.add_argument(
+        "--affinity",
+        default="paired",
+        choices=AFFINITIES,
+        help="CPU placement of the node processes: paired (default) keeps plant + "
+        "torque_controller on one CPU and speed_pi + metrics_logger on another; none: the "
+        "kernel's choice",
     )
     r.add_argument("--out", help="bag directory to write (must not exist)")
     r.add_argument(

@@ -25,7 +25,7 @@ from ..core.control import Machine
 from ..core.scenario import RunParams, Scenario
 from ..errors import ConfigError, GraphError
 from ..interface import TOPICS, Qos
-from .graph import LAUNCHER_ENV
+from .graph import CPUS_ENV, LAUNCHER_ENV
 
 __all__ = [
     "DriveNode",
@@ -347,4 +347,25 @@ def run_main(node_cls: type, args: list[str] | None = None) -> int:
     if args is None:
         args = sys.argv
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    keep_to_cpus()
     return spin_node(node_cls, args=args)
+
+
+def keep_to_cpus() -> None:
+    """Pin this process to the CPUs its launcher chose (:data:`CPUS_ENV`): every thread there is
+    now (numpy's pool, say) and, since it runs before rclpy and DDS start theirs, every later one."""
+    cpus = os.environ.get(CPUS_ENV, "").strip()
+    if not cpus:
+        return
+    try:
+        chosen = {int(c) for c in cpus.split(",")}
+        for tid in os.listdir("/proc/self/task"):
+            try:
+                os.sched_setaffinity(int(tid), chosen)
+            except ProcessLookupError:
+                pass  # a thread that ended meanwhile
+    except (ValueError, OSError) as e:
+        raise SystemExit(
+            f"{CPUS_ENV}={cpus!r}: cannot keep to these CPUs ({e}); expected "
+            f"comma-separated ids of {sorted(os.sched_getaffinity(0))}"
+        ) from None
