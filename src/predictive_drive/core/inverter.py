@@ -15,6 +15,8 @@ import cmath
 import math
 from typing import NamedTuple
 
+from .signals import new_record
+
 __all__ = [
     "VECTOR_STATES",
     "PhasePulses",
@@ -101,7 +103,9 @@ def active_then_zero(
     f = fraction
     delay = (0.0, 0.0, f, 0.0)  # by kind, see _then_zero_kinds
     duty = (1.0, f, 1.0 - f, 0.0)
-    return PhasePulses(delay[ka], delay[kb], delay[kc], duty[ka], duty[kb], duty[kc]), z
+    return new_record(
+        PhasePulses, (delay[ka], delay[kb], delay[kc], duty[ka], duty[kb], duty[kc])
+    ), z
 
 
 def segments(
