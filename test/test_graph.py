@@ -17,7 +17,13 @@ import pytest
 from predictive_drive import api
 from predictive_drive.bag import read_bag
 from predictive_drive.errors import GraphError
-from predictive_drive.ros.graph import CPUS_ENV, FASTDDS_PROFILES, cpu_plan, ros_env
+from predictive_drive.ros.graph import (
+    CPUS_ENV,
+    FASTDDS_PROFILES,
+    FASTDDS_PROFILES_ENV,
+    cpu_plan,
+    ros_env,
+)
 
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
 
@@ -194,7 +200,8 @@ def assert_placed(nodes: dict[str, int]) -> None:
             if plan:
                 assert allowed == plan[name], (name, task.name, allowed)
         environ = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
-        assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ
+        if not any(os.environ.get(k) for k in FASTDDS_PROFILES_ENV):  # else the user's wins
+            assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ
 
 
 def test_cpu_plan_pairs_the_lock_step_partners():
@@ -231,6 +238,17 @@ def test_node_process_keeps_to_the_cpus_it_is_given():
     )
     assert bad.returncode == 1
     assert f"{CPUS_ENV}='0,x': cannot keep to these CPUs" in bad.stderr
+
+
+def test_launcher_hands_children_the_profile_unless_the_user_has_one(monkeypatch):
+    for k in FASTDDS_PROFILES_ENV:
+        monkeypatch.delenv(k, raising=False)
+    env = ros_env(150)
+    assert all(env[k] == str(FASTDDS_PROFILES) for k in FASTDDS_PROFILES_ENV)
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", "/etc/mine.xml")
+    env = ros_env(150)
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == "/etc/mine.xml"
+    assert "FASTDDS_DEFAULT_PROFILES_FILE" not in env
 
 
 def test_fastdds_accepts_the_profile():
