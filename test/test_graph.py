@@ -95,14 +95,22 @@ def assert_same_run(a, b) -> None:
     np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
 
 
+def run_against_inprocess(engine: str, duration: float, tmp_path: Path) -> tuple:
+    """im_short on ``engine`` and in-process; the engine's recording complete, both the same run
+    bit for bit. Returns (engine result, in-process result)."""
+    g = api.run("im_short", duration=duration, engine=engine, out=tmp_path / engine)
+    i = api.run("im_short", duration=duration, engine="inprocess", out=tmp_path / "inprocess")
+    a, info = read_bag(g.bag)
+    b, _ = read_bag(i.bag)
+    assert info.complete and a.steps == b.steps
+    assert_same_run(a, b)
+    return g, i
+
+
 def test_graph_run_equals_inprocess_bit_for_bit(tmp_path):
     before = set(descendants(os.getpid()))
-    ros = api.run("im_short", duration=0.1, engine="ros", out=tmp_path / "ros")
-    inp = api.run("im_short", duration=0.1, engine="inprocess", out=tmp_path / "inp")
-    a, info = read_bag(ros.bag)
-    b, _ = read_bag(inp.bag)
-    assert info.complete and a.steps == b.steps == 2000
-    assert_same_run(a, b)
+    ros, inp = run_against_inprocess("ros", 0.1, tmp_path)
+    assert ros.steps == 2000
     assert ros.metrics.t_rmse == inp.metrics.t_rmse
     # the recording holds every topic, decodable by the independent reader
     from rosbags.highlevel import AnyReader
@@ -125,12 +133,8 @@ def test_graph_run_equals_inprocess_bit_for_bit(tmp_path):
 
 def test_composed_run_equals_inprocess(tmp_path):
     """Composed: lock-step topics delivered in-process (LocalBus), same sequences bit for bit."""
-    c = api.run("im_short", duration=0.05, engine="composed", out=tmp_path / "c")
-    i = api.run("im_short", duration=0.05, engine="inprocess", out=tmp_path / "i")
-    a, info = read_bag(c.bag)
-    b, _ = read_bag(i.bag)
-    assert info.complete and a.steps == b.steps == 1000
-    assert_same_run(a, b)
+    composed, _ = run_against_inprocess("composed", 0.05, tmp_path)
+    assert composed.steps == 1000
 
 
 @pytest.mark.parametrize("engine", ["ros", "composed"])

@@ -352,8 +352,9 @@ def run_main(node_cls: type, args: list[str] | None = None) -> int:
 
 
 def keep_to_cpus() -> None:
-    """Pin this process to the CPUs its launcher chose (:data:`CPUS_ENV`): every thread there is
-    now (numpy's pool, say) and, since it runs before rclpy and DDS start theirs, every later one."""
+    """Pin this process to the CPUs its launcher chose (:data:`CPUS_ENV`): every thread it has now
+    (imports may have started some) and, since this runs before rclpy and DDS start theirs, every
+    later one."""
     cpus = os.environ.get(CPUS_ENV, "").strip()
     if not cpus:
         return
