@@ -96,9 +96,9 @@ def run_inprocess(
     c = build(scenario)
     plant, pi, ctrl = c.plant, c.speed_pi, c.controller
     builder = TraceBuilder(scenario.ts, strategy_names(ctrl.machine))
-    states = builder.rows["state"].append
-    refs = builder.rows["reference"].append
-    cmds = builder.rows["command"].append
+    states = builder.appender("state")
+    refs = builder.appender("reference")
+    cmds = builder.appender("command")
     pending = sorted(switches)
     next_switch = pending[0][0] if pending else n
     state = plant.state()

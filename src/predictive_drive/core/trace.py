@@ -5,8 +5,9 @@ Both engines and the bag reader produce a :class:`Trace`; the metrics read only 
 
 from __future__ import annotations
 
-import itertools
-from dataclasses import dataclass, field
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,26 +37,38 @@ class Trace:
         return int(self.command.shape[0])
 
 
-@dataclass
 class TraceBuilder:
-    ts: float
-    strategy_names: tuple[str, ...] = ()
-    rows: dict[str, list[tuple[float, ...]]] = field(
-        default_factory=lambda: {name: [] for name in RECORDS}
-    )
+    """Collects records packed as little-endian doubles, one buffer per record kind, so a long run
+    keeps no Python float or tuple alive per step; :meth:`build` views them as 2-D arrays."""
+
+    def __init__(self, ts: float, strategy_names: tuple[str, ...] = ()) -> None:
+        self.ts = ts
+        self.strategy_names = strategy_names
+        self.buffers = {name: bytearray() for name in RECORDS}
+        self._packers = {
+            name: struct.Struct(f"<{len(cls._fields)}d") for name, cls in RECORDS.items()
+        }
+
+    def appender(self, record: str) -> Callable[[tuple[float, ...]], None]:
+        """``add(row)`` for one record kind, for hot loops (struct.error if a row is not as wide
+        as the record)."""
+        extend, pack = self.buffers[record].extend, self._packers[record].pack
+
+        def add(row: tuple[float, ...]) -> None:
+            extend(pack(*row))
+
+        return add
 
     def add(self, record: str, row: tuple[float, ...]) -> None:
         """Append one record; records of each kind must arrive in step order from 0."""
-        self.rows[record].append(row)
+        self.buffers[record].extend(self._packers[record].pack(*row))
 
     def build(self) -> Trace:
         arrays = {}
         for name, cls in RECORDS.items():
-            rows = self.rows[name]
             width = len(cls._fields)
-            arr = np.fromiter(
-                itertools.chain.from_iterable(rows), dtype=np.float64, count=len(rows) * width
-            ).reshape(-1, width)
+            # a copy: the builder's buffers stay growable and the trace owns writable arrays
+            arr = np.frombuffer(self.buffers[name], dtype="<f8").reshape(-1, width).copy()
             if arr.shape[0] and not np.array_equal(arr[:, 0], np.arange(arr.shape[0])):
                 raise ValueError(f"{name} records are not contiguous from step 0")
             arrays[name] = arr
