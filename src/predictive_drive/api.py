@@ -153,16 +153,19 @@ def run(
     switches: Sequence[tuple[float, str]] = (),
     progress: Callable[[int, int], None] | None = None,
     affinity: str = "paired",
+    sched: str = "batch",
 ) -> RunResult:
-    """Run a scenario on an engine, record it, and evaluate the recording. ``affinity``: CPU
-    placement of the ``ros`` engine's node processes (``paired`` | ``none``, see
-    :func:`predictive_drive.ros.graph.cpu_plan`)."""
+    """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
+    ``sched``: CPU placement (``paired`` | ``none``, see
+    :func:`predictive_drive.ros.graph.cpu_plan`) and scheduling policy (``batch`` | ``other``) of
+    the ``ros`` engine's node processes."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     sc, text = prepare(scenario, strategy=strategy, duration=duration)
     bag = Path(out) if out is not None else default_bag_dir(sc)
     n = sc.run.steps
     cb = (lambda k: progress(k, n)) if progress is not None else None
+    switch_steps(sc, switches)  # every engine: a bad --switch fails before anything starts
     t0 = time.perf_counter()
     if engine == "inprocess":
         run_inprocess_to_bag(sc, text, bag, switches, cb)
@@ -176,6 +179,7 @@ def run(
             switches=switches,
             progress=cb,
             affinity=affinity,
+            sched=sched,
         )
     wall = time.perf_counter() - t0
     metrics, trace_steps, _ = evaluate(bag)
@@ -555,7 +559,12 @@ def analyze(
 
 
 def graph_rate(
-    engine: str, *, short: float = 0.1, long: float = 1.0, affinity: str = "paired"
+    engine: str,
+    *,
+    short: float = 0.1,
+    long: float = 1.0,
+    affinity: str = "paired",
+    sched: str = "batch",
 ) -> dict[str, float]:
     """Steps/s of a graph engine with recording on, start-up excluded: two runs of different
     length, rate = Δsteps / Δwall."""
@@ -571,6 +580,7 @@ def graph_rate(
                 engine=engine,
                 out=Path(tmp) / f"{engine}_{d}",
                 affinity=affinity,
+                sched=sched,
             )
             walls[d] = (r.steps, r.wall_s)
     (n0, w0), (n1, w1) = walls[short], walls[long]
@@ -613,12 +623,13 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str
         )
         out["inprocess_recorded_steps_per_s"] = n / (time.perf_counter() - t0)
     if ros:
-        for engine, affinity, key in (
-            ("ros", "paired", "ros_steps_per_s"),
-            ("ros", "none", "ros_unpinned_steps_per_s"),
-            ("composed", "none", "composed_steps_per_s"),  # one process: nothing to place
+        for engine, affinity, sched, key in (
+            ("ros", "paired", "batch", "ros_steps_per_s"),  # the defaults
+            ("ros", "paired", "other", "ros_sched_other_steps_per_s"),
+            ("ros", "none", "other", "ros_unpinned_steps_per_s"),  # all left to the kernel
+            ("composed", "none", "other", "composed_steps_per_s"),  # one process: nothing to place
         ):
-            g = graph_rate(engine, affinity=affinity)
+            g = graph_rate(engine, affinity=affinity, sched=sched)
             out[key] = g["steps_per_s"]
             out[key.replace("steps_per_s", "startup_s")] = g["startup_s"]
     return out

@@ -10,7 +10,7 @@ from typing import Any
 
 from . import __version__, api
 from .errors import PredictiveDriveError
-from .ros.graph import AFFINITIES
+from .ros.graph import AFFINITIES, SCHED_POLICIES
 
 __all__ = ["main"]
 
@@ -95,6 +95,7 @@ def cmd_run(a: argparse.Namespace) -> int:
             switches=a.switch or (),
             progress=update,
             affinity=a.affinity,
+            sched=a.sched,
         )
     finally:
         close()
@@ -236,8 +237,9 @@ def cmd_bench(a: argparse.Namespace) -> int:
     )
     print(f"in-process with MCAP recording: {d['inprocess_recorded_steps_per_s']:,.0f} steps/s")
     whats = {
-        "ros_steps_per_s": "four processes, paired CPUs, recording on",
-        "ros_unpinned_steps_per_s": "four processes, --affinity none, recording on",
+        "ros_steps_per_s": "four processes, paired CPUs, SCHED_BATCH, recording on",
+        "ros_sched_other_steps_per_s": "four processes, paired CPUs, --sched other, recording on",
+        "ros_unpinned_steps_per_s": "four processes, --affinity none --sched other, recording on",
         "composed_steps_per_s": "one process",
     }
     for k, what in whats.items():
@@ -295,6 +297,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="CPU placement of the node processes: paired (default) keeps plant + "
         "torque_controller on one CPU and speed_pi + metrics_logger on another; none: the "
         "kernel's choice",
+    )
+    r.add_argument(
+        "--sched",
+        default="batch",
+        choices=tuple(SCHED_POLICIES),
+        help="scheduling policy of the node processes' threads: batch (default, SCHED_BATCH: a "
+        "woken node does not preempt the one publishing to it) or other (the kernel's default)",
     )
     r.add_argument("--out", help="bag directory to write (must not exist)")
     r.add_argument(

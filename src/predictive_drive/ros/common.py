@@ -25,7 +25,7 @@ from ..core.control import Machine
 from ..core.scenario import RunParams, Scenario
 from ..errors import ConfigError, GraphError
 from ..interface import TOPICS, Qos
-from .graph import CPUS_ENV, LAUNCHER_ENV
+from .graph import CPUS_ENV, LAUNCHER_ENV, SCHED_ENV, SCHED_POLICIES
 
 __all__ = [
     "DriveNode",
@@ -347,26 +347,42 @@ def run_main(node_cls: type, args: list[str] | None = None) -> int:
     if args is None:
         args = sys.argv
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    keep_to_cpus()
+    apply_placement()
     return spin_node(node_cls, args=args)
 
 
-def keep_to_cpus() -> None:
-    """Pin this process to the CPUs its launcher chose (:data:`CPUS_ENV`): every thread it has now
-    (imports may have started some) and, since this runs before rclpy and DDS start theirs, every
-    later one."""
+def apply_placement() -> None:
+    """Apply the placement its launcher chose to this process: the CPUs (:data:`CPUS_ENV`) and the
+    scheduling policy (:data:`SCHED_ENV`) of every thread it has now (imports may have started
+    some) and, since this runs before rclpy and DDS start theirs, of every later one (threads
+    inherit both)."""
     cpus = os.environ.get(CPUS_ENV, "").strip()
-    if not cpus:
-        return
-    try:
-        chosen = {int(c) for c in cpus.split(",")}
-        for tid in os.listdir("/proc/self/task"):
-            try:
-                os.sched_setaffinity(int(tid), chosen)
-            except ProcessLookupError:
-                pass  # a thread that ended meanwhile
-    except (ValueError, OSError) as e:
-        raise SystemExit(
-            f"{CPUS_ENV}={cpus!r}: cannot keep to these CPUs ({e}); expected "
-            f"comma-separated ids of {sorted(os.sched_getaffinity(0))}"
-        ) from None
+    sched = os.environ.get(SCHED_ENV, "").strip()
+    if cpus:
+        try:
+            chosen = {int(c) for c in cpus.split(",")}
+            _each_thread(lambda tid: os.sched_setaffinity(tid, chosen))
+        except (ValueError, OSError) as e:
+            raise SystemExit(
+                f"{CPUS_ENV}={cpus!r}: cannot keep to these CPUs ({e}); expected "
+                f"comma-separated ids of {sorted(os.sched_getaffinity(0))}"
+            ) from None
+    if sched:
+        if sched not in SCHED_POLICIES:
+            raise SystemExit(
+                f"{SCHED_ENV}={sched!r}: unknown scheduling policy; expected one of "
+                f"{', '.join(SCHED_POLICIES)}"
+            )
+        policy = SCHED_POLICIES[sched]
+        try:
+            _each_thread(lambda tid: os.sched_setscheduler(tid, policy, os.sched_param(0)))
+        except OSError as e:
+            raise SystemExit(f"{SCHED_ENV}={sched!r}: cannot use this policy ({e})") from None
+
+
+def _each_thread(apply: Callable[[int], None]) -> None:
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            apply(int(tid))
+        except ProcessLookupError:
+            pass  # a thread that ended meanwhile

@@ -25,12 +25,20 @@ from ..errors import GraphError
 #: set by the launcher to its PID for its children: a node whose parent is no longer that process
 #: (the launcher was killed outright, e.g. SIGKILL, and could not stop them) ends the run itself
 LAUNCHER_ENV = "PREDICTIVE_DRIVE_LAUNCHER_PID"
+#: name of the launcher's own node (in /drive) that follows /clock and switches strategies
+LAUNCHER_NODE = "launcher"
 #: set by the launcher for each child: the CPUs (comma-separated ids) the node process keeps to,
 #: applied before rclpy starts its threads (what ``taskset -c`` does for ``ros2 run``)
 CPUS_ENV = "PREDICTIVE_DRIVE_CPUS"
 #: ``--affinity`` values: ``paired`` keeps each lock-step pair on one CPU, ``none`` leaves the
 #: placement to the kernel
 AFFINITIES = ("paired", "none")
+#: set by the launcher for each child: the Linux scheduling policy of every thread of the node
+SCHED_ENV = "PREDICTIVE_DRIVE_SCHED"
+#: ``--sched`` values → policy. ``batch`` (SCHED_BATCH, same priority as normal): a thread that
+#: wakes does not preempt the one running on its CPU, so a node finishes publishing to all its
+#: readers before the reader it woke on its CPU runs; ``other``: the kernel's default
+SCHED_POLICIES = {"batch": os.SCHED_BATCH, "other": os.SCHED_OTHER}
 #: Fast DDS settings for the graph (see the file's comment); the 2.x and 3.x variable names
 FASTDDS_PROFILES = Path(__file__).with_name("fastdds_profiles.xml")
 FASTDDS_PROFILES_ENV = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
@@ -38,6 +46,7 @@ FASTDDS_PROFILES_ENV = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFI
 __all__ = [
     "AFFINITIES",
     "NODES",
+    "SCHED_POLICIES",
     "cpu_plan",
     "isolated_domain",
     "ros_env",
@@ -141,9 +150,14 @@ def run_graph(
     progress: Callable[[int], None] | None = None,
     peer_timeout: float = 10.0,
     affinity: str = "paired",
+    sched: str = "batch",
 ) -> None:
     """Run ``sc`` through the graph and record it to ``bag``; GraphError names a failed node.
-    ``affinity`` places the separate node processes on CPUs (see :func:`cpu_plan`)."""
+    ``affinity`` places the separate node processes on CPUs (see :func:`cpu_plan`) and ``sched``
+    is their threads' scheduling policy (:data:`SCHED_POLICIES`); the composed engine runs in
+    this process and is left as it is."""
+    if sched not in SCHED_POLICIES:
+        raise GraphError(f"--sched: {sched!r} is not one of {', '.join(SCHED_POLICIES)}")
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
     # node-specific entries beat wildcard ones and later files beat earlier ones, so the command
@@ -153,6 +167,9 @@ def run_graph(
     overrides["/drive/metrics_logger"]["ros__parameters"].update(
         strategy=sc.controller.strategy, bag=str(bag.resolve()), scenario_file=source
     )
+    # the launcher follows /clock for progress and switches: step 0 waits for it too
+    watching = bool(switches) or progress is not None
+    overrides["/drive/plant"]["ros__parameters"]["await_launcher"] = watching
     with isolated_domain() as domain, tempfile.TemporaryDirectory() as logs:
         import yaml
 
@@ -161,10 +178,12 @@ def run_graph(
         args = ["--ros-args", "--params-file", source, "--params-file", str(override_file)]
         env = ros_env(domain)
         plan = {} if composed else cpu_plan(affinity)
+        if not composed:
+            env[SCHED_ENV] = sched
         procs: dict[str, subprocess.Popen[bytes]] = {}
         outs: dict[str, IO[bytes]] = {}
-        # the launcher's own node joins the domain first, so it hears /clock from step 0
-        watcher = _ClockWatcher(domain, sc, switches, progress) if (switches or progress) else None
+        # the launcher's own node: the plant waits for its /clock subscription before step 0
+        watcher = _ClockWatcher(domain, sc, switches, progress) if watching else None
         commands = (
             {"composed": ["predictive_drive.ros.composed", *args]}
             if composed
@@ -186,7 +205,8 @@ def run_graph(
                 + ", ".join(
                     f"{n} pid {p.pid}" + (f" cpu {plan[n]}" if n in plan else "")
                     for n, p in procs.items()
-                ),
+                )
+                + ("" if composed else f"; sched {sched}"),
                 file=sys.stderr,
                 flush=True,
             )
@@ -205,9 +225,6 @@ def _watch(
     watcher: _ClockWatcher | None,
 ) -> None:
     """Wait for the children; follow /clock for progress and timed strategy switches."""
-    if watcher is not None and watcher.pending:
-        # discover the controller's parameter services now, so a timed switch goes out at once
-        watcher.client.wait_for_services(timeout_sec=30.0)
     while True:
         if watcher is not None:
             watcher.spin(0.05)
@@ -224,8 +241,18 @@ def _watch(
                 f"closed.\n  {name} said:\n{_tail(outs[name])}"
             )
         if all(c == 0 for c in codes.values()):
-            if watcher is not None and watcher.switch_errors:
-                raise GraphError("; ".join(watcher.switch_errors))
+            if watcher is not None:
+                watcher.spin(0.0)  # a last answer may be waiting
+                errors = (
+                    watcher.switch_errors
+                    + [
+                        f"{what}: no answer from /drive/torque_controller before the run ended"
+                        for what, _ in watcher._futures
+                    ]
+                    + [f"switch at {at} s to {name}: never sent" for at, name in watcher.pending]
+                )
+                if errors:
+                    raise GraphError("; ".join(errors))
             return
 
 
@@ -249,7 +276,7 @@ class _ClockWatcher:
 
         self.ctx = Context()
         rclpy.init(context=self.ctx, domain_id=domain)
-        self.node = rclpy.create_node("launcher", namespace="/drive", context=self.ctx)
+        self.node = rclpy.create_node(LAUNCHER_NODE, namespace="/drive", context=self.ctx)
         self.ex = executor(self.ctx)
         self.ex.add_node(self.node)
         self.ts = sc.ts
@@ -258,9 +285,11 @@ class _ClockWatcher:
         self.switch_errors: list[str] = []
         self._futures: list[tuple[str, Any]] = []
         self.client = AsyncParameterClient(self.node, "/drive/torque_controller")
-        self.node.create_subscription(
+        # /clock only once a timed switch can go out at once: the plant holds step 0 until then
+        self._subscribe = lambda: self.node.create_subscription(
             Clock, TOPICS["clock"].name, self.on_clock, qos(TOPICS["clock"].qos)
         )
+        self._subscribed = False
 
     def on_clock(self, msg: Any) -> None:
         t = msg.clock.sec + msg.clock.nanosec * 1e-9
@@ -274,6 +303,9 @@ class _ClockWatcher:
             self._futures.append((f"switch at {at} s to {name}", fut))
 
     def spin(self, timeout: float) -> None:
+        if not self._subscribed and (not self.pending or self.client.services_are_ready()):
+            self._subscribe()
+            self._subscribed = True
         self.ex.spin_once(timeout_sec=timeout)
         for what, fut in list(self._futures):
             if fut.done():

@@ -17,14 +17,15 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 
 from ..bag import BagWriter
-from ..config import resolve_scenario_path
+from ..config import NAMESPACE, resolve_scenario_path
 from ..core.control import strategy_names
 from ..core.runner import build_controller, build_plant
 from ..core.signals import Command, Reference, State
 from ..core.speed_pi import SpeedPI
-from ..interface import CODECS
+from ..interface import CODECS, TOPICS
 from ..recording import RunRecorder, tool_every, tool_messages
 from .common import DriveNode
+from .graph import LAUNCHER_NODE
 
 __all__ = ["MetricsLoggerNode", "PlantNode", "SpeedPINode", "TorqueControllerNode"]
 
@@ -75,20 +76,42 @@ class PlantNode(_Watched):
         self.pub_clock = self.publisher("clock")
         self.pub_joint = self.publisher("joint_states")
         self.sub_cmd = self.subscription("command", self.on_command)
+        from rcl_interfaces.msg import ParameterDescriptor
+
+        self.await_launcher = self.declare_parameter(
+            "await_launcher",
+            False,
+            ParameterDescriptor(
+                description="step 0 also waits for the launcher's /clock subscription (it "
+                "follows progress and sends timed strategy switches)",
+                read_only=True,
+            ),
+        ).value
         self.k_started = False
 
+    def _not_listening(self) -> list[str]:
+        """Who step 0 still waits for: speed_pi, torque_controller, metrics_logger (and the
+        launcher when ``await_launcher``)."""
+        missing = []
+        if self.pub_state.get_subscription_count() < 3:
+            missing.append("3 subscribers of /drive/state")
+        if self.pub_joint.get_subscription_count() < 1:
+            missing.append("the logger's /drive/joint_states subscription")
+        if self.await_launcher and not any(
+            (i.node_namespace, i.node_name) == (NAMESPACE, LAUNCHER_NODE)
+            for i in self.get_subscriptions_info_by_topic(TOPICS["clock"].name)
+        ):
+            missing.append(f"the launcher's /clock subscription ({NAMESPACE}/{LAUNCHER_NODE})")
+        if self.count_publishers("/drive/command") < 1:
+            missing.append("a /drive/command publisher")
+        return missing
+
     def check(self) -> None:
-        if not self.k_started:
-            # step 0 only once every peer listens: speed_pi, torque_controller, metrics_logger
-            if (
-                self.pub_state.get_subscription_count() >= 3
-                and self.pub_joint.get_subscription_count() >= 1
-                and self.count_publishers("/drive/command") >= 1
-            ):
-                self.k_started = True
-                self.progressed()
-                self.publish_state(self.plant.state())
-                return
+        if not self.k_started and not self._not_listening():
+            self.k_started = True
+            self.progressed()
+            self.publish_state(self.plant.state())
+            return
         super().check()
 
     def publish_state(self, state: State) -> None:
@@ -101,6 +124,8 @@ class PlantNode(_Watched):
             self.finished = True
 
     def stalled_message(self) -> str:
+        if not self.k_started:
+            return f"step 0 still waits for {', '.join(self._not_listening())}"
         return f"no /drive/command for step {self.plant.k} from /drive/torque_controller"
 
     def on_command(self, data: bytes) -> None:
