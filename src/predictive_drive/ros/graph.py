@@ -103,7 +103,7 @@ def cpu_plan(affinity: str, cpus: Sequence[int] | None = None) -> dict[str, str]
     ``paired``: plant and torque_controller share one CPU, speed_pi and metrics_logger another.
     Plant and controller take turns on the critical path (state k → command k → state k+1), so on
     one CPU each wakes the other without a cross-CPU wake-up; the PI and the logger work beside
-    them. On this project's 2-vCPU machine that is ~1.5-1.7x the steps/s of free placement
+    them. On this project's 2-vCPU machine that is ~1.3-1.7x the steps/s of free placement
     (``predictive-drive bench`` prints both). Fewer than two usable CPUs: no pinning.
     """
     if affinity not in AFFINITIES:
