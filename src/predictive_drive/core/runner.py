@@ -96,9 +96,9 @@ def run_inprocess(
     c = build(scenario)
     plant, pi, ctrl = c.plant, c.speed_pi, c.controller
     builder = TraceBuilder(scenario.ts, strategy_names(ctrl.machine))
-    states = builder.appender("state")
-    refs = builder.appender("reference")
-    cmds = builder.appender("command")
+    (s_add, s_pack), (r_add, r_pack), (c_add, c_pack) = (
+        builder.packer(r) for r in ("state", "reference", "command")
+    )
     pending = sorted(switches)
     next_switch = pending[0][0] if pending else n
     state = plant.state()
@@ -110,9 +110,9 @@ def run_inprocess(
                 ctrl.set_strategy(pending.pop(0)[1])
             next_switch = pending[0][0] if pending else n
         cmd = ctrl.step(state, ref)
-        states(state)
-        refs(ref)
-        cmds(cmd)
+        s_add(s_pack(*state))
+        r_add(r_pack(*ref))
+        c_add(c_pack(*cmd))
         for s in sinks:
             s("state", state)
             s("reference", ref)
@@ -121,8 +121,8 @@ def run_inprocess(
         state = plant.step(cmd)
         if progress is not None and k % every == 0:
             progress(k)
-    states(state)
-    refs(ref)
+    s_add(s_pack(*state))
+    r_add(r_pack(*ref))
     for s in sinks:
         s("state", state)
         s("reference", ref)

@@ -57,19 +57,20 @@ class SpeedPI:
         self.params = params
         self.ts = ts
         self._speed = params.speed_profile().sampled(ts)
+        self._consts = (params.kp, params.ki * ts, params.torque_limit, params.flux_ref)
+        self._k_next, self._w_next = 0, self._speed.at(0)
         self.integral = 0.0
 
     def initial(self) -> Reference:
         return Reference(0.0, 0.0, 0.0, self.params.flux_ref, self._speed.at(0))
 
     def step(self, state: State) -> Reference:
-        p = self.params
         k = int(state.k)
-        at = self._speed.at
-        w_ref = at(k)
+        # ω*(k) is the ω*(k+1) of the previous step when the steps come in order
+        w_ref = self._w_next if k == self._k_next else self._speed.at(k)
+        kp, ki_ts, lim, flux_ref = self._consts
         e = w_ref - state.omega_m
-        raw = p.kp * e + self.integral
-        lim = p.torque_limit
+        raw = kp * e + self.integral
         if raw > lim:
             out, saturated = lim, e > 0
         elif raw < -lim:
@@ -77,5 +78,7 @@ class SpeedPI:
         else:
             out, saturated = raw, False
         if not saturated:
-            self.integral += p.ki * self.ts * e
-        return new_record(Reference, (float(k + 1), (k + 1) * self.ts, out, p.flux_ref, at(k + 1)))
+            self.integral += ki_ts * e
+        self._k_next = k1 = k + 1
+        self._w_next = w_next = self._speed.at(k1)
+        return new_record(Reference, (float(k1), k1 * self.ts, out, flux_ref, w_next))

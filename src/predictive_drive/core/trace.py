@@ -49,15 +49,10 @@ class TraceBuilder:
             name: struct.Struct(f"<{len(cls._fields)}d") for name, cls in RECORDS.items()
         }
 
-    def appender(self, record: str) -> Callable[[tuple[float, ...]], None]:
-        """``add(row)`` for one record kind, for hot loops (struct.error if a row is not as wide
-        as the record)."""
-        extend, pack = self.buffers[record].extend, self._packers[record].pack
-
-        def add(row: tuple[float, ...]) -> None:
-            extend(pack(*row))
-
-        return add
+    def packer(self, record: str) -> tuple[Callable[[bytes], None], Callable[..., bytes]]:
+        """``(add, pack)`` for hot loops: ``add(pack(*row))`` appends one ``record`` row
+        (struct.error if the row is not as wide as the record)."""
+        return self.buffers[record].extend, self._packers[record].pack
 
     def add(self, record: str, row: tuple[float, ...]) -> None:
         """Append one record; records of each kind must arrive in step order from 0."""
