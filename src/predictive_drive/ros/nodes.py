@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 
 from ..bag import BagWriter
@@ -76,8 +76,6 @@ class PlantNode(_Watched):
         self.pub_clock = self.publisher("clock")
         self.pub_joint = self.publisher("joint_states")
         self.sub_cmd = self.subscription("command", self.on_command)
-        from rcl_interfaces.msg import ParameterDescriptor
-
         self.await_launcher = self.declare_parameter(
             "await_launcher",
             False,
@@ -248,7 +246,6 @@ class MetricsLoggerNode(_Watched):
     def __init__(self, **kw: Any) -> None:
         super().__init__("metrics_logger", **kw)
         run, self.params = self.load_params()
-        from rcl_interfaces.msg import ParameterDescriptor
 
         extra = {
             k: self.declare_parameter(
