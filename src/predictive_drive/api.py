@@ -124,10 +124,11 @@ def run_inprocess_to_bag(
     sc: Scenario,
     text: str,
     out: Path,
-    switches: Sequence[tuple[float, str]] = (),
+    switches: Sequence[tuple[int, str]] = (),
     progress: Callable[[int], None] | None = None,
 ) -> int:
-    """The in-process engine with recording; returns the number of steps recorded."""
+    """The in-process engine with recording; returns the number of steps recorded. ``switches``:
+    (step, strategy) pairs, as :func:`switch_steps` makes them."""
     with BagWriter(out, info=bag_info(sc, text, "inprocess")) as writer:
         rec = RunRecorder(
             writer,
@@ -136,9 +137,7 @@ def run_inprocess_to_bag(
             strategy_names=strategy_names(sc.run.machine),
             record_tools=True,
         )
-        trace = run_inprocess(
-            sc, switches=switch_steps(sc, switches), sinks=[rec.record], progress=progress
-        )
+        trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
         rec.finish()
     return trace.steps
 
@@ -165,10 +164,11 @@ def run(
     bag = Path(out) if out is not None else default_bag_dir(sc)
     n = sc.run.steps
     cb = (lambda k: progress(k, n)) if progress is not None else None
-    switch_steps(sc, switches)  # every engine: a bad --switch fails before anything starts
+    # checked for every engine, so a bad --switch fails before anything starts
+    at_steps = switch_steps(sc, switches)
     t0 = time.perf_counter()
     if engine == "inprocess":
-        run_inprocess_to_bag(sc, text, bag, switches, cb)
+        run_inprocess_to_bag(sc, text, bag, at_steps, cb)
     else:
         from .ros.graph import run_graph  # rclpy only when a ROS engine is asked for
 

@@ -58,7 +58,6 @@ class SpeedPI:
         self.ts = ts
         self._speed = params.speed_profile().sampled(ts)
         self._consts = (params.kp, params.ki * ts, params.torque_limit, params.flux_ref)
-        self._k_next, self._w_next = 0, self._speed.at(0)
         self.integral = 0.0
 
     def initial(self) -> Reference:
@@ -66,10 +65,9 @@ class SpeedPI:
 
     def step(self, state: State) -> Reference:
         k = int(state.k)
-        # ω*(k) is the ω*(k+1) of the previous step when the steps come in order
-        w_ref = self._w_next if k == self._k_next else self._speed.at(k)
+        at = self._speed.at
         kp, ki_ts, lim, flux_ref = self._consts
-        e = w_ref - state.omega_m
+        e = at(k) - state.omega_m
         raw = kp * e + self.integral
         if raw > lim:
             out, saturated = lim, e > 0
@@ -79,6 +77,5 @@ class SpeedPI:
             out, saturated = raw, False
         if not saturated:
             self.integral += ki_ts * e
-        self._k_next = k1 = k + 1
-        self._w_next = w_next = self._speed.at(k1)
-        return new_record(Reference, (float(k1), k1 * self.ts, out, flux_ref, w_next))
+        k1 = k + 1
+        return new_record(Reference, (float(k1), k1 * self.ts, out, flux_ref, at(k1)))

@@ -241,18 +241,8 @@ def _watch(
                 f"closed.\n  {name} said:\n{_tail(outs[name])}"
             )
         if all(c == 0 for c in codes.values()):
-            if watcher is not None:
-                watcher.spin(0.0)  # a last answer may be waiting
-                errors = (
-                    watcher.switch_errors
-                    + [
-                        f"{what}: no answer from /drive/torque_controller before the run ended"
-                        for what, _ in watcher._futures
-                    ]
-                    + [f"switch at {at} s to {name}: never sent" for at, name in watcher.pending]
-                )
-                if errors:
-                    raise GraphError("; ".join(errors))
+            if watcher is not None and (errors := watcher.final_errors()):
+                raise GraphError("; ".join(errors))
             return
 
 
@@ -269,10 +259,8 @@ class _ClockWatcher:
         import rclpy
         from rclpy.context import Context
         from rclpy.parameter_client import AsyncParameterClient
-        from rosgraph_msgs.msg import Clock
 
-        from ..interface import TOPICS
-        from .common import executor, qos
+        from .common import executor
 
         self.ctx = Context()
         rclpy.init(context=self.ctx, domain_id=domain)
@@ -285,11 +273,17 @@ class _ClockWatcher:
         self.switch_errors: list[str] = []
         self._futures: list[tuple[str, Any]] = []
         self.client = AsyncParameterClient(self.node, "/drive/torque_controller")
-        # /clock only once a timed switch can go out at once: the plant holds step 0 until then
-        self._subscribe = lambda: self.node.create_subscription(
+        self._clock_sub: Any = None  # see spin()
+
+    def _follow_clock(self) -> None:
+        from rosgraph_msgs.msg import Clock
+
+        from ..interface import TOPICS
+        from .common import qos
+
+        self._clock_sub = self.node.create_subscription(
             Clock, TOPICS["clock"].name, self.on_clock, qos(TOPICS["clock"].qos)
         )
-        self._subscribed = False
 
     def on_clock(self, msg: Any) -> None:
         t = msg.clock.sec + msg.clock.nanosec * 1e-9
@@ -303,9 +297,9 @@ class _ClockWatcher:
             self._futures.append((f"switch at {at} s to {name}", fut))
 
     def spin(self, timeout: float) -> None:
-        if not self._subscribed and (not self.pending or self.client.services_are_ready()):
-            self._subscribe()
-            self._subscribed = True
+        # /clock only once a timed switch can go out at once: the plant holds step 0 until then
+        if self._clock_sub is None and (not self.pending or self.client.services_are_ready()):
+            self._follow_clock()
         self.ex.spin_once(timeout_sec=timeout)
         for what, fut in list(self._futures):
             if fut.done():
@@ -314,6 +308,18 @@ class _ClockWatcher:
                 for r in getattr(res, "results", []):
                     if not r.successful:
                         self.switch_errors.append(f"{what} rejected: {r.reason}")
+
+    def final_errors(self) -> list[str]:
+        """After the run: rejected switches, and switches unanswered or never sent."""
+        self.spin(0.0)  # a last answer may be waiting
+        return (
+            self.switch_errors
+            + [
+                f"{what}: no answer from /drive/torque_controller before the run ended"
+                for what, _ in self._futures
+            ]
+            + [f"switch at {at} s to {name}: never sent" for at, name in self.pending]
+        )
 
     def close(self) -> None:
         import rclpy
