@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup run test bench clean
+.PHONY: setup run test test-core bench clean
 
 setup: $(STAMP)
 
@@ -20,7 +20,13 @@ run: setup
 
 test: setup
 	$(VENV)/bin/ruff check src test
+	$(VENV)/bin/ruff format --check src test
+	$(VENV)/bin/mypy --strict src/predictive_drive/core
 	$(PY) -m pytest -q test
+
+# the fast tier alone: no ROS, no node processes
+test-core: setup
+	$(PY) -m pytest -q -m core test
 
 bench: setup
 	$(VENV)/bin/predictive-drive bench

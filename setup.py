@@ -16,7 +16,7 @@ setup(
     package_dir={"": "src"},
     packages=find_packages("src"),
     package_data={
-        f"{PACKAGE}.core": ["candidate_tables.json"],
+        f"{PACKAGE}.core.control": ["candidate_tables.json"],
         f"{PACKAGE}.ros": ["fastdds_profiles.xml"],
     },
     data_files=[
@@ -35,7 +35,7 @@ setup(
         "ros": ["ros-jazzy-rclpy[fastrtps]>=7.1,<8", "ros-jazzy-common-interfaces>=5.3,<6"],
         "test": ["pytest>=8,<10", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
-                 "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1"],
+                 "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1", "mypy>=1.10,<3"],
     },
     zip_safe=False,  # the nodes hand Fast DDS the path of ros/fastdds_profiles.xml
     entry_points={

@@ -12,7 +12,7 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(random.Random(os.getpid()).randint(10
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from predictive_drive.config import load_scenario  # noqa: E402
-from predictive_drive.core.runner import run_inprocess, with_strategy  # noqa: E402
+from predictive_drive.core.runner import run_inprocess  # noqa: E402
 
 
 @pytest.fixture(scope="session")
@@ -23,4 +23,4 @@ def im_short():
 @pytest.fixture(scope="session")
 def short_traces(im_short):
     """A 0.4 s closed-loop run per IM strategy (shared: each takes about a second)."""
-    return {s: run_inprocess(with_strategy(im_short, s)) for s in ("mptc", "mptc_db", "db_mptc")}
+    return {s: run_inprocess(im_short.with_strategy(s)) for s in ("mptc", "mptc_db", "db_mptc")}

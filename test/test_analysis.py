@@ -3,36 +3,39 @@ from a strategy-1 recording; the paper-001 reproductions run end to end (shorten
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from predictive_drive import api, cli
+from predictive_drive import cli
+from predictive_drive.api.analyze import analyze
+from predictive_drive.api.reproduce import reproduce
+from predictive_drive.api.run import run_inprocess_to_bag
+from predictive_drive.config import load_scenario
 from predictive_drive.core.analysis import derive_candidates, utilization
 from predictive_drive.core.control import make_strategy
-from predictive_drive.core.motors import PMSMCoefficients
-from predictive_drive.core.pmsm_control import (
-    TABLES,
-    PMSMPrediction,
-    load_candidate_tables,
-    sector,
-)
+from predictive_drive.core.control.candidates import TABLES, load_candidate_tables, sector
+from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
+from predictive_drive.core.machines.pmsm import PMSMCoefficients
 from predictive_drive.core.signals import Command, Reference, State
 from predictive_drive.core.trace import Trace
 from predictive_drive.errors import ConfigError
+
+pytestmark = pytest.mark.core
 
 
 @pytest.fixture(scope="module")
 def s1_bag(tmp_path_factory):
     """The full 4 s spmsm_analysis run under strategy 1 (the paper's design run), recorded."""
     out = tmp_path_factory.mktemp("analysis") / "s1"
-    sc, text = api.prepare("spmsm_analysis", strategy="simplified1")
-    api.run_inprocess_to_bag(sc, text, out)
+    sc = load_scenario("spmsm_analysis", strategy="simplified1")
+    run_inprocess_to_bag(sc, out)
     return out
 
 
 def test_analyze_regenerates_the_candidate_tables(s1_bag, tmp_path):
-    d = api.analyze(s1_bag, write_tables=tmp_path / "tables.json")
+    d = analyze(s1_bag, write_tables=tmp_path / "tables.json")
     assert d["threshold"] == pytest.approx(0.6) and d["steps"] == 80000
     assert d["matches_tables"], d["differences"]
     # SPEC §3.3's printed column (ΔT > +th, Δψ ≥ 0) — the one paper 001 prints for strategy 3
@@ -98,28 +101,28 @@ def test_derivation_rule_keeps_v0_and_vectors_near_the_most_used():
 def test_strategies_use_the_sector_of_sector(degrees):
     """At every sector boundary the strategies' inlined sector equals sector()."""
     m = PMSMPrediction(
-        PMSMCoefficients.of(api.prepare("spmsm_short")[0].plant.motor), 5e-5, 0.6, 0.12
+        PMSMCoefficients.of(load_scenario("spmsm_short").plant.motor), 5e-5, 0.6, 0.12
     )
     m.prepare(0.0, 0.0, 0.0, 312.0)
     m.theta_psi = math.radians(degrees) % (2 * math.pi)
-    s2 = make_strategy("pmsm", "simplified2").decide(m, m.te + 5.0, m.psi)
-    s3 = make_strategy("pmsm", "simplified3").decide(m, m.te + 5.0, m.psi)
+    s2 = make_strategy("mptc_pmsm", "simplified2").decide(m, m.te + 5.0, m.psi)
+    s3 = make_strategy("mptc_pmsm", "simplified3").decide(m, m.te + 5.0, m.psi)
     assert s2.cal == len(TABLES.six[0][sector(m.theta_psi, 6)])
     assert s3.cal == len(TABLES.twelve[0][0][sector(m.theta_psi, 12)])
 
 
 def test_analyze_needs_a_threshold_for_an_induction_run(tmp_path):
-    sc, text = api.prepare("im_short", duration=0.01)
-    api.run_inprocess_to_bag(sc, text, tmp_path / "im")
+    sc = load_scenario("im_short", duration=0.01)
+    run_inprocess_to_bag(sc, tmp_path / "im")
     with pytest.raises(ConfigError, match="--threshold"):
-        api.analyze(tmp_path / "im")
-    assert api.analyze(tmp_path / "im", threshold=0.5)["steps"] == 200
+        analyze(tmp_path / "im")
+    assert analyze(tmp_path / "im", threshold=0.5)["steps"] == 200
 
 
 def test_candidate_tables_must_keep_v0(tmp_path):
     doc = json.loads(
         (
-            api.Path(__file__).parents[1] / "src/predictive_drive/core/candidate_tables.json"
+            Path(__file__).parents[1] / "src/predictive_drive/core/control/candidate_tables.json"
         ).read_text()
     )
     doc["six_sector"]["T+"][0] = [2, 3, 4]
@@ -130,7 +133,7 @@ def test_candidate_tables_must_keep_v0(tmp_path):
 
 
 def test_reproduce_ipmsm_validation_shortened(tmp_path):
-    d = api.reproduce("ipmsm_validation", duration=0.1, repeats=1, out_root=tmp_path)
+    d = reproduce("ipmsm_validation", duration=0.1, repeats=1, out_root=tmp_path)
     rows = {r["strategy"]: r for r in d["rows"]}
     assert list(rows) == ["mptc", "simplified1", "simplified2", "simplified3"]
     assert all(r["replay_identical"] for r in rows.values())
@@ -142,9 +145,9 @@ def test_reproduce_ipmsm_validation_shortened(tmp_path):
 
 
 def test_reproduce_spmsm_sweep_shortened(tmp_path):
-    d = api.reproduce("spmsm_analysis", duration=0.02, out_root=tmp_path)
+    d = reproduce("spmsm_analysis", duration=0.02, out_root=tmp_path)
     th = [r.get("torque_threshold") for r in d["rows"]]
     assert th == [None] + [round(0.1 * i, 1) for i in range(1, 16)]
     bag = d["rows"][6]["bag"]  # threshold 0.6: the bag stores the swept scenario
-    assert api.analyze(bag)["threshold"] == 0.6
-    assert api.analyze(d["rows"][15]["bag"])["threshold"] == 1.5
+    assert analyze(bag)["threshold"] == 0.6
+    assert analyze(d["rows"][15]["bag"])["threshold"] == 1.5

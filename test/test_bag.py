@@ -6,18 +6,22 @@ import numpy as np
 import pytest
 import yaml
 
-from predictive_drive import api
+from predictive_drive.api.report import report
+from predictive_drive.api.run import run, run_inprocess_to_bag
 from predictive_drive.bag import BagWriter, read_bag
+from predictive_drive.config import load_scenario
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import BagError
 from predictive_drive.interface import TOPICS
+
+pytestmark = pytest.mark.core
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory, im_short):
     out = tmp_path_factory.mktemp("bags") / "run1"
-    sc, text = api.prepare("im_short", duration=0.06)
-    n = api.run_inprocess_to_bag(sc, text, out)
+    sc = load_scenario("im_short", duration=0.06)
+    n = run_inprocess_to_bag(sc, out)
     return out, sc, n
 
 
@@ -126,14 +130,14 @@ def test_existing_bag_directory_is_refused(recorded):
 
 
 def test_report_agrees_with_run(tmp_path):
-    r = api.run("im_short", engine="inprocess", duration=0.1, strategy="mptc", out=tmp_path / "r")
-    rep = api.report(tmp_path / "r")
+    r = run("im_short", engine="inprocess", duration=0.1, strategy="mptc", out=tmp_path / "r")
+    rep = report(tmp_path / "r")
     assert rep["metrics"] == r.metrics.as_dict()
     assert rep["strategy"] == "mptc" and rep["steps"] == 2000
 
 
 def test_switch_is_visible_in_recording(tmp_path):
-    api.run(
+    run(
         "im_short",
         engine="inprocess",
         duration=0.1,
@@ -146,3 +150,69 @@ def test_switch_is_visible_in_recording(tmp_path):
     names = trace.strategy_names
     assert names[int(strat[0])] == "mptc" and names[int(strat[-1])] == "db_mptc"
     assert np.flatnonzero(np.diff(strat))[0] + 1 == 1400  # exactly at 0.07 s
+
+
+@pytest.fixture(scope="module")
+def long_recording(tmp_path_factory):
+    """1.2 s of im_short: two /diagnostics periods (1 s, then the last 0.2 s)."""
+    out = tmp_path_factory.mktemp("bags") / "long"
+    run_inprocess_to_bag(load_scenario("im_short", duration=1.2), out)
+    trace, _ = read_bag(out)
+    return out, trace
+
+
+def _rosbags_messages(bag, topic):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        conns = [c for c in reader.connections if c.topic == topic]
+        return [(t, reader.deserialize(raw, c.msgtype)) for c, t, raw in reader.messages(conns)]
+
+
+def test_joint_states_carry_the_traced_shaft_values(long_recording):
+    """Decoded by the independent reader: every 1 ms the shaft angle, speed and torque of the
+    state at that step (so a wrong field index in the plant's tool messages fails here)."""
+    bag, tr = long_recording
+    msgs = _rosbags_messages(bag, "/drive/joint_states")
+    k = np.arange(0, tr.steps + 1, 20)
+    assert len(msgs) == len(k)
+    got = np.array([(m.position[0], m.velocity[0], m.effort[0]) for _, m in msgs])
+    want = np.column_stack(
+        [tr.col("state", "theta_m")[k], tr.col("state", "omega_m")[k], tr.col("state", "torque")[k]]
+    )
+    np.testing.assert_array_equal(got, want)
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, m in msgs]
+    np.testing.assert_allclose(stamps, tr.col("state", "t")[k], rtol=0, atol=1e-9)
+
+
+def test_diagnostics_values_equal_the_trace_figures(long_recording):
+    """/diagnostics, decoded by the independent reader, against figures computed here from the
+    trace over the same steps (the first 1 s, then the rest): a wrong index in the running
+    metrics fails here."""
+    bag, tr = long_recording
+    msgs = _rosbags_messages(bag, "/diagnostics")
+    assert len(msgs) == 2
+    ts = tr.ts
+    bounds = [(0, 20000), (20000, tr.steps)]
+    for (_, msg), (k0, k1) in zip(msgs, bounds):
+        (status,) = msg.status
+        values = {kv.key: kv.value for kv in status.values}
+        s = slice(k0, k1)
+        te = tr.col("state", "torque")[s]
+        psi = np.hypot(tr.col("state", "psi_alpha")[s], tr.col("state", "psi_beta")[s])
+        want = {
+            "t_rmse": np.sqrt(np.mean((te - tr.col("reference", "torque_ref")[s]) ** 2)),
+            "psi_rmse": np.sqrt(np.mean((psi - tr.col("reference", "flux_ref")[s]) ** 2)),
+            "torque_estimate_rmse": np.sqrt(
+                np.mean((tr.col("command", "torque_est")[s] - te) ** 2)
+            ),
+            "speed_rmse": np.sqrt(
+                np.mean((tr.col("state", "omega_m")[s] - tr.col("reference", "speed_ref")[s]) ** 2)
+            ),
+            "f_ave_hz": tr.col("state", "transitions")[s].sum() / (6 * (k1 - k0) * ts),
+        }
+        for key, value in want.items():
+            assert float(values[key]) == pytest.approx(value, rel=1e-9, abs=1e-12), key
+        assert float(values["steps"]) == k1
+        assert values["strategy"] == "db_mptc"

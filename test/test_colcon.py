@@ -5,6 +5,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.process
+
 ROOT = Path(__file__).resolve().parents[1]
 NODES = ["plant_node", "speed_pi_node", "torque_controller_node", "metrics_logger_node"]
 

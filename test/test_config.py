@@ -7,26 +7,32 @@ import pytest
 import yaml
 
 from predictive_drive.config import (
-    MACHINE_SECTIONS,
-    NAMESPACE,
+    FAMILY_KEY,
     config_dir,
     load_scenario,
     scenario_names,
+    section_classes,
     section_fields,
 )
-from predictive_drive.core.control import Machine
-from predictive_drive.core.motors import PMSM, InductionMotor
+from predictive_drive.core.machines.induction import InductionMotor
+from predictive_drive.core.machines.pmsm import PMSM
 from predictive_drive.core.scenario import RunParams
 from predictive_drive.errors import ConfigError
+from predictive_drive.interface import NAMESPACE
+
+pytestmark = pytest.mark.core
 
 
 @pytest.mark.parametrize("name", scenario_names())
 def test_yaml_keys_equal_dataclass_fields(name):
     doc = yaml.safe_load((config_dir() / f"{name}.yaml").read_text())
     assert set(doc["/**"]["ros__parameters"]) == set(section_fields(RunParams))
-    machine = Machine(doc["/**"]["ros__parameters"]["machine"])
-    for node, (cls, nested) in MACHINE_SECTIONS[machine].items():
-        params = doc[f"{NAMESPACE}/{node}"]["ros__parameters"]
+    machine = doc["/**"]["ros__parameters"]["machine"]
+    family = doc[f"{NAMESPACE}/torque_controller"]["ros__parameters"][FAMILY_KEY]
+    for node, (cls, nested) in section_classes(machine, family).items():
+        params = dict(doc[f"{NAMESPACE}/{node}"]["ros__parameters"])
+        if node == "torque_controller":
+            params.pop(FAMILY_KEY)  # names the settings class; not one of its fields
         assert set(params) == set(section_fields(cls)), node
         for key, sub in nested.items():
             assert set(params[key]) == set(section_fields(sub)), f"{node}.{key}"
@@ -89,9 +95,9 @@ def test_pmsm_threshold_defaults_to_a_share_of_rated_torque(tmp_path):
 @pytest.mark.parametrize(
     "old, new, words",
     [
-        ("strategy: mptc ", "strategy: db_mptc ", ["db_mptc", "simplified3", "pmsm"]),
+        ("strategy: mptc ", "strategy: db_mptc ", ["db_mptc", "simplified3", "strategy"]),
         ("torque_threshold: 0.75", "torque_threshold: -1.0", ["torque_threshold", ">= 0"]),
-        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["l_q", "positive"]),
+        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["PMSM.l_q", "> 0 H", "-0.0073"]),
         ("machine: pmsm", "machine: dc", ["machine", "induction", "pmsm"]),
         ("      rated_torque: 15.0\n", "", ["rated_torque", "missing"]),
     ],
@@ -128,17 +134,31 @@ CASES = {
     "missing key": (lambda d: _plant(d).pop("u_dc"), r"/drive/plant: missing key 'u_dc'"),
     "negative inductance": (
         lambda d: _plant(d)["motor"].update(l_s=-0.28),
-        r"/drive/plant.motor: InductionMotor.l_s must be a positive number",
+        r"/drive/plant.motor: InductionMotor.l_s must be a finite number > 0 H, got -0.28",
     ),
     "unknown strategy": (
         lambda d: d["/drive/torque_controller"]["ros__parameters"].update(strategy="dtc"),
-        r"strategy: unknown strategy 'dtc' for machine 'induction'; valid: mptc, mptc_db, db_mptc",
+        r"/drive/torque_controller: InductionControllerParams.strategy: 'dtc' is not one of "
+        r"mptc, mptc_db, db_mptc",
     ),
     "wrong type": (
         lambda d: _plant(d).update(u_dc="high"),
         r"/drive/plant.u_dc: expected a number, got 'high'",
     ),
     "missing section": (lambda d: d.pop("/drive/speed_pi"), r"missing section '/drive/speed_pi'"),
+    "unknown family": (
+        lambda d: d["/drive/torque_controller"]["ros__parameters"].update(family="dtc_im"),
+        r"/drive/torque_controller.family: 'dtc_im' is not one of mptc_im, mptc_pmsm",
+    ),
+    "no family": (
+        lambda d: d["/drive/torque_controller"]["ros__parameters"].pop("family"),
+        r"/drive/torque_controller: missing key 'family'; one of mptc_im, mptc_pmsm",
+    ),
+    "family of another machine": (
+        lambda d: d["/drive/torque_controller"]["ros__parameters"].update(family="mptc_pmsm"),
+        r"torque_controller.family: 'mptc_pmsm' controls a pmsm machine, but the scenario's "
+        r"machine is 'induction'",
+    ),
     "unknown machine": (
         lambda d: d["/**"]["ros__parameters"].update(machine="dc"),
         r"machine: 'dc' is not one of induction",

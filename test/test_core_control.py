@@ -6,17 +6,19 @@ import random
 
 import pytest
 
-from predictive_drive.core.control import (
-    STRATEGIES,
-    IMPrediction,
-    InductionController,
-    Machine,
-    make_strategy,
-)
+from predictive_drive.core.control import InductionController, make_strategy, strategy_names
+from predictive_drive.core.control.mptc_im import IMPrediction
+from predictive_drive.core.control.speed_pi import SpeedPI, SpeedPIParams
 from predictive_drive.core.inverter import vector_voltages
-from predictive_drive.core.motors import InductionCoefficients, induction_rk4, induction_torque
+from predictive_drive.core.machines.induction import (
+    InductionCoefficients,
+    induction_dynamics,
+    induction_rk4,
+    induction_torque,
+)
 from predictive_drive.core.signals import Reference, State
-from predictive_drive.core.speed_pi import SpeedPI, SpeedPIParams
+
+pytestmark = pytest.mark.core
 
 TS = 5e-5
 LAM = 17.5
@@ -31,22 +33,36 @@ def random_states(n, seed=1):
 
 
 def exhaustive(coef, i, psi, w, t_ref, candidates):
-    """Independent brute force: integrate the model exactly (fine RK4) for each candidate
-    (vector, duration) and score with the same cost; first strict minimum in V0..V6 order."""
+    """Independent brute force: one forward-Euler step of the plant's own dynamics function
+    (SPEC §2.2; what the controller's prediction is specified to be) for each candidate (vector,
+    time it is applied: the voltage averaged over Ts), scored with the cost of SPEC §3.2; first
+    strict minimum in V0..V6 order."""
     best, best_n = math.inf, None
     for n, u, t_u in candidates:
-        x = (i, psi, w, 0.0)
-        # forward Euler of the model (what the controller is specified to use), written out
-        wr = coef.p * w
-        di = complex(coef.a_ii, wr) * i + complex(coef.b_ipsi, -wr * coef.c_w) * psi
-        i1 = i + TS * di + t_u * coef.c_w * u
-        p1 = psi + t_u * u - TS * coef.r_s * i
+        di, dpsi, _, _ = induction_dynamics(0.0, (i, psi, w, 0.0), (u * t_u / TS, 0.0), coef)
+        i1, p1 = i + TS * di, psi + TS * dpsi
         t1 = induction_torque(p1, i1, coef.torque_k)
         g = abs(t_ref - t1) + LAM * abs(0.71 - abs(p1))
-        del x
         if g < best:
             best, best_n = g, n
     return best_n
+
+
+def deadbeat_time(coef, i, psi, w, u, t_ref):
+    """t_u of paper 000 eq 9-13 from the model alone: dT_e/dt by central differences of the
+    torque along the dynamics with u applied and with the zero vector; the torque then moves
+    linearly over Ts, so T(k+1) = T + Ts·dT0 + t_u·(dT_u - dT0) = T* gives t_u."""
+
+    def rate(v):
+        h = 1e-7
+        f = induction_dynamics(0.0, (i, psi, w, 0.0), (v, 0.0), coef)
+        ahead = induction_torque(psi + h * f[1], i + h * f[0], coef.torque_k)
+        back = induction_torque(psi - h * f[1], i - h * f[0], coef.torque_k)
+        return (ahead - back) / (2 * h)
+
+    t_now = induction_torque(psi, i, coef.torque_k)
+    d0 = rate(0j)
+    return (t_ref - t_now - TS * d0) / (rate(u) - d0)
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +72,7 @@ def coef(im_short):
 
 def test_mptc_equals_exhaustive_search(coef):
     volts = vector_voltages(582.0)
-    s = make_strategy(Machine.INDUCTION, "mptc")
+    s = make_strategy("mptc_im", "mptc")
     for i, psi, w, t_ref in random_states(300):
         m = IMPrediction(coef, TS, LAM, False)
         m.prepare(i, psi, w, volts)
@@ -69,7 +85,7 @@ def test_db_mptc_equals_exhaustive_search_over_scaled_vectors(coef):
     """DB-MPTC predicts T with eq 16 (linear in t_u); the brute force uses the same model, so they
     must pick the same vector among those with t_u >= 0."""
     volts = vector_voltages(582.0)
-    s = make_strategy(Machine.INDUCTION, "db_mptc")
+    s = make_strategy("mptc_im", "db_mptc")
     for i, psi, w, t_ref in random_states(300, seed=2):
         m = IMPrediction(coef, TS, LAM, False)
         m.prepare(i, psi, w, volts)
@@ -94,17 +110,35 @@ def test_db_mptc_equals_exhaustive_search_over_scaled_vectors(coef):
 
 
 def test_mptc_db_keeps_mptc_vector_and_clamps_duty(coef):
+    """The MPTC vector, applied for the deadbeat time the model gives (derived here by finite
+    differences of the dynamics, not by the controller's a_u, a_0), clamped to [0, Ts]."""
     volts = vector_voltages(582.0)
-    mptc = make_strategy("induction", "mptc")
-    mdb = make_strategy("induction", "mptc_db")
-    for i, psi, w, t_ref in random_states(200, seed=3):
+    mptc = make_strategy("mptc_im", "mptc")
+    mdb = make_strategy("mptc_im", "mptc_db")
+    cases = {"inside": 0, "below": 0, "above": 0}
+    for n, (i, psi, w, t_far) in enumerate(random_states(400, seed=3)):
+        # references near the present torque too, so every clamping case occurs
+        near = induction_torque(psi, i, coef.torque_k) + (-0.3, -0.05, 0.05, 0.3)[n % 4]
+        t_ref = t_far if n % 5 == 0 else near
         m = IMPrediction(coef, TS, LAM, False)
         m.prepare(i, psi, w, volts)
         a, b = mptc.decide(m, t_ref, 0.71), mdb.decide(m, t_ref, 0.71)
         assert a.vector == b.vector
-        assert 0.0 <= b.fraction <= 1.0
-        if b.vector:
-            assert b.fraction == pytest.approx(min(max(b.t_u / TS, 0.0), 1.0))
+        if not b.vector:
+            assert b.fraction == 1.0  # the zero vector all period, no deadbeat time
+            continue
+        t_u = deadbeat_time(coef, i, psi, w, volts[b.vector], t_ref)
+        assert b.t_u == pytest.approx(t_u, rel=1e-5)
+        if t_u < 0:
+            cases["below"] += 1
+            assert b.fraction == 0.0
+        elif t_u > TS:
+            cases["above"] += 1
+            assert b.fraction == 1.0
+        else:
+            cases["inside"] += 1
+            assert b.fraction == pytest.approx(t_u / TS, rel=1e-5)
+    assert all(n > 5 for n in cases.values()), cases
 
 
 def test_deadbeat_duty_lands_on_the_reference_on_the_nominal_model(coef):
@@ -134,13 +168,13 @@ def test_first_strict_minimum_breaks_ties_in_vector_order(coef):
     predicts the same, so the first (V0) is chosen."""
     m = IMPrediction(coef, TS, LAM, False)
     m.prepare(1 + 1j, 0.7 + 0j, 100.0, vector_voltages(0.0))
-    assert make_strategy("induction", "mptc").decide(m, 1.0, 0.71).vector == 0
+    assert make_strategy("mptc_im", "mptc").decide(m, 1.0, 0.71).vector == 0
 
 
 def test_unknown_strategy_lists_the_valid_ones():
     with pytest.raises(ValueError, match="valid: mptc, mptc_db, db_mptc"):
-        make_strategy("induction", "dtc")
-    assert set(STRATEGIES[Machine.INDUCTION]) == {"mptc", "mptc_db", "db_mptc"}
+        make_strategy("mptc_im", "dtc")
+    assert strategy_names("mptc_im") == ("mptc", "mptc_db", "db_mptc")
 
 
 def _state(k, i=0j, w=0.0):

@@ -13,6 +13,8 @@ from predictive_drive.core.inverter import (
     zero_state_for,
 )
 
+pytestmark = pytest.mark.core
+
 
 def test_vectors_have_paper_numbering_and_two_thirds_udc_amplitude():
     v = vector_voltages(300.0)

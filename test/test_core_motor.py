@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from predictive_drive.core.control import IMPrediction
-from predictive_drive.core.motors import (
+from predictive_drive.core.control.mptc_im import IMPrediction
+from predictive_drive.core.machines.induction import (
     InductionCoefficients,
     induction_dynamics,
     induction_exact,
@@ -15,6 +15,8 @@ from predictive_drive.core.motors import (
     induction_torque,
 )
 from predictive_drive.core.plant import rk4
+
+pytestmark = pytest.mark.core
 
 TS = 5e-5
 STATE = (3.1 - 2.2j, 0.55 + 0.42j, 180.0, 0.3)  # i_s, ψ_s, ω_m, θ_m: a running machine

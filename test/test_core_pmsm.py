@@ -11,21 +11,24 @@ import pytest
 
 from predictive_drive.config import load_scenario
 from predictive_drive.core.control import PMSMController, make_strategy
+from predictive_drive.core.control.candidates import TABLES, sector
+from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
 from predictive_drive.core.inverter import vector_voltages
-from predictive_drive.core.metrics import compute_metrics, phase_a_spectrum
-from predictive_drive.core.motors import (
+from predictive_drive.core.machines.pmsm import (
     PMSM,
     PMSMCoefficients,
     pmsm_dynamics,
     pmsm_rk4,
     pmsm_torque,
 )
+from predictive_drive.core.metrics import compute_metrics, phase_a_spectrum
 from predictive_drive.core.plant import PMSMPlant, rk4
-from predictive_drive.core.pmsm_control import TABLES, PMSMPrediction, sector
-from predictive_drive.core.profiles import StepProfile
-from predictive_drive.core.runner import run_inprocess, with_strategy
+from predictive_drive.core.runner import run_inprocess
 from predictive_drive.core.signals import Reference, State
+from predictive_drive.core.timebase import StepProfile
 from predictive_drive.core.trace import Trace
+
+pytestmark = pytest.mark.core
 
 TS = 5e-5
 SPMSM = PMSM(0.2, 0.0085, 0.0085, 0.175, 4, 0.001, 12.0, 750.0)
@@ -41,7 +44,7 @@ def ipmsm_short():
 @pytest.fixture(scope="module")
 def ipmsm_traces(ipmsm_short):
     names = ("mptc", "simplified1", "simplified2", "simplified3")
-    return {s: run_inprocess(with_strategy(ipmsm_short, s)) for s in names}
+    return {s: run_inprocess(ipmsm_short.with_strategy(s)) for s in names}
 
 
 def test_torque_formula_and_saliency():
@@ -89,7 +92,7 @@ def test_plant_publishes_park_consistent_alpha_beta():
 
 
 def test_halving_the_substep_changes_t_rmse_by_less_than_one_percent(ipmsm_short):
-    sc = with_strategy(ipmsm_short, "mptc")
+    sc = ipmsm_short.with_strategy("mptc")
     fine = dataclasses.replace(
         sc, plant=dataclasses.replace(sc.plant, max_substep=sc.plant.max_substep / 2)
     )
@@ -167,7 +170,7 @@ def candidates_of(name, m, t_ref, psi_ref):
 @pytest.mark.parametrize("name", ["mptc", "simplified1", "simplified2", "simplified3"])
 @pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
 def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
-    s = make_strategy("pmsm", name)
+    s = make_strategy("mptc_pmsm", name)
     for m, theta_e, t_ref, psi_ref in random_views(motor, 300):
         d = s.decide(m, t_ref, psi_ref)
         cands = candidates_of(name, m, t_ref, psi_ref)
@@ -214,16 +217,16 @@ class _View:
 
 def test_flux_error_zero_counts_as_positive():
     v = _View(te=5.0, psi=0.3, theta_psi=math.radians(15)).m
-    d = make_strategy("pmsm", "simplified3").decide(v, 8.0, 0.3)  # Δψ = 0 exactly
+    d = make_strategy("mptc_pmsm", "simplified3").decide(v, 8.0, 0.3)  # Δψ = 0 exactly
     assert d.cal == len(TABLES.twelve[0][0][0]) == 3  # θ1, T+ψ+: V0 V2 V3
-    d = make_strategy("pmsm", "simplified3").decide(v, 8.0, 0.2999)  # Δψ < 0
+    d = make_strategy("mptc_pmsm", "simplified3").decide(v, 8.0, 0.2999)  # Δψ < 0
     assert d.cal == len(TABLES.twelve[0][1][0]) == 4  # θ1, T+ψ−: V0 V2 V3 V4
 
 
 def test_threshold_is_inclusive_and_skips_all_predictions():
     v = _View(te=5.0, psi=0.3, theta_psi=1.0).m
     for name in ("simplified1", "simplified2", "simplified3"):
-        s = make_strategy("pmsm", name)
+        s = make_strategy("mptc_pmsm", name)
         assert s.decide(v, 5.0 + 0.6, 0.3)[::3] == (0, 0)
         assert s.decide(v, 5.0 - 0.6, 0.3)[::3] == (0, 0)
         assert s.decide(v, 5.0 + 0.61, 0.3).cal > 0
@@ -231,7 +234,7 @@ def test_threshold_is_inclusive_and_skips_all_predictions():
 
 def test_torque_reference_zero_is_guarded_by_t_floor():
     """T* = 0 at a load reversal: the torque term divides by T_floor, not by zero."""
-    s = make_strategy("pmsm", "mptc")
+    s = make_strategy("mptc_pmsm", "mptc")
     for m, theta_e, _, _ in random_views(SPMSM, 50):
         d = s.decide(m, 0.0, 0.3)
         costs = [

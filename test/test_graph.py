@@ -14,18 +14,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from predictive_drive import api
+from predictive_drive.api.run import run
 from predictive_drive.bag import read_bag
-from predictive_drive.errors import ConfigError, GraphError
-from predictive_drive.ros.graph import (
-    CPUS_ENV,
+from predictive_drive.config import load_scenario
+from predictive_drive.errors import ConfigError
+from predictive_drive.ros.placement import (
     FASTDDS_PROFILES,
     FASTDDS_PROFILES_ENV,
-    SCHED_ENV,
     cpu_plan,
-    ros_env,
-    run_graph,
 )
+
+pytestmark = pytest.mark.process
 
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
 
@@ -100,8 +99,8 @@ def assert_same_run(a, b) -> None:
 def run_against_inprocess(engine: str, duration: float, tmp_path: Path) -> tuple:
     """im_short on ``engine`` and in-process; the engine's recording complete, both the same run
     bit for bit. Returns (engine result, in-process result)."""
-    g = api.run("im_short", duration=duration, engine=engine, out=tmp_path / engine)
-    i = api.run("im_short", duration=duration, engine="inprocess", out=tmp_path / "inprocess")
+    g = run("im_short", duration=duration, engine=engine, out=tmp_path / engine)
+    i = run("im_short", duration=duration, engine="inprocess", out=tmp_path / "inprocess")
     a, info = read_bag(g.bag)
     b, _ = read_bag(i.bag)
     assert info.complete and a.steps == b.steps
@@ -145,7 +144,7 @@ def test_timed_switch_through_parameter_service(tmp_path, engine):
     (service latency), at a step boundary, and the recording shows where. Composed, the watch is
     the process's one outside (DDS) subscriber and the service is answered between local delivery
     batches."""
-    r = api.run(
+    r = run(
         "im_short",
         duration=0.4,
         engine=engine,
@@ -212,86 +211,10 @@ def assert_placed(nodes: dict[str, int]) -> None:
             assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ
 
 
-def test_cpu_plan_pairs_the_lock_step_partners():
-    assert cpu_plan("paired", [2, 5, 7]) == {
-        "plant": "2",
-        "torque_controller": "2",
-        "speed_pi": "5",
-        "metrics_logger": "5",
-    }
-    assert cpu_plan("paired", [3]) == {}  # one CPU: nothing to place
-    assert cpu_plan("none", [0, 1]) == {}
-    with pytest.raises(GraphError, match="--affinity: 'spread' is not one of paired, none"):
-        cpu_plan("spread", [0, 1])
-
-
-def test_node_process_applies_the_placement_it_is_given():
-    code = "import os, threading; from predictive_drive.ros.common import apply_placement; "
-    code += "t = threading.Thread(target=threading.Event().wait, args=(5,), daemon=True); "
-    code += "t.start(); apply_placement(); "
-    code += "print(sorted(os.sched_getaffinity(t.native_id)), os.sched_getscheduler(t.native_id))"
-    first = min(os.sched_getaffinity(0))
-
-    def child(**env: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(
-            [sys.executable, "-c", code],
-            env={**os.environ, **env},
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-
-    ok = child(**{CPUS_ENV: str(first), SCHED_ENV: "batch"})
-    assert ok.stdout.split() == [f"[{first}]", str(os.SCHED_BATCH)], ok.stderr  # a thread it had
-    other = child(**{SCHED_ENV: "other"})
-    assert other.stdout.split()[-1] == str(os.SCHED_OTHER), other.stderr
-    bad = child(**{CPUS_ENV: "0,x"})
-    assert bad.returncode == 1
-    assert f"{CPUS_ENV}='0,x': cannot keep to these CPUs" in bad.stderr
-    bad = child(**{SCHED_ENV: "fifo"})
-    assert bad.returncode == 1
-    assert f"{SCHED_ENV}='fifo': unknown scheduling policy; expected one of batch, other" in (
-        bad.stderr
-    )
-
-
 def test_graph_run_rejects_a_switch_outside_the_run_before_starting(tmp_path):
     with pytest.raises(ConfigError, match=r"--switch 5.0:db_mptc: time must lie in \[0, 0.4\) s"):
-        api.run("im_short", duration=0.4, switches=[(5.0, "db_mptc")], out=tmp_path / "b")
+        run("im_short", duration=0.4, switches=[(5.0, "db_mptc")], out=tmp_path / "b")
     assert not (tmp_path / "b").exists()
-
-
-def test_run_graph_rejects_an_unknown_policy(tmp_path):
-    sc, _ = api.prepare("im_short")
-    with pytest.raises(GraphError, match="--sched: 'fifo' is not one of batch, other"):
-        run_graph(sc, tmp_path / "bag", sched="fifo")
-    assert not (tmp_path / "bag").exists()
-
-
-def test_launcher_hands_children_the_profile_unless_the_user_has_one(monkeypatch):
-    for k in FASTDDS_PROFILES_ENV:
-        monkeypatch.delenv(k, raising=False)
-    env = ros_env(150)
-    assert all(env[k] == str(FASTDDS_PROFILES) for k in FASTDDS_PROFILES_ENV)
-    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", "/etc/mine.xml")
-    env = ros_env(150)
-    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == "/etc/mine.xml"
-    assert "FASTDDS_DEFAULT_PROFILES_FILE" not in env
-
-
-def test_fastdds_accepts_the_profile():
-    """Fast DDS reports a profile it cannot parse on stderr and carries on; this one it takes."""
-    code = "import rclpy; rclpy.init(); n = rclpy.create_node('profile_check'); "
-    code += "from std_msgs.msg import Float64MultiArray as M; n.create_publisher(M, 'x', 10); "
-    code += "n.destroy_node(); rclpy.shutdown(); print('ok')"
-    r = subprocess.run(
-        [sys.executable, "-c", code],
-        env=ros_env(int(os.environ["ROS_DOMAIN_ID"])),
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert r.stdout.strip() == "ok" and "XMLPARSER" not in r.stderr, r.stderr
 
 
 def started_recording(cli_run, bag: Path) -> tuple[subprocess.Popen[str], dict[str, int]]:
@@ -335,13 +258,9 @@ def test_nodes_of_a_launcher_killed_outright_end_themselves(cli_run, tmp_path):
 def test_bad_scenario_file_fails_before_starting_anything(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("/**:\n  ros__parameters: {scenario: x}\n")
-    with pytest.raises(Exception, match="bad.yaml"):
-        api.run(bad, engine="ros", out=tmp_path / "never")
+    with pytest.raises(ConfigError, match="bad.yaml"):
+        run(bad, engine="ros", out=tmp_path / "never")
     assert not (tmp_path / "never").exists()
-
-
-def test_graph_error_type_is_exported():
-    assert issubclass(GraphError, Exception)
 
 
 def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path):
@@ -349,7 +268,7 @@ def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path):
     recorded switch step in-process gives the same sequences bit for bit."""
     from predictive_drive.core.runner import run_inprocess
 
-    r = api.run(
+    r = run(
         "ipmsm_short",
         duration=0.3,
         engine="ros",
@@ -367,37 +286,6 @@ def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path):
     assert 400 <= first < 3000 and np.all(s[first:] == 3) and np.all(s[:first] == 0)
     cal = tr.col("command", "cal")
     assert np.all(cal[:first] == 7) and cal[first:].mean() < 3
-    sc, _ = api.prepare("ipmsm_short", strategy="mptc")
+    sc = load_scenario("ipmsm_short", strategy="mptc")
     ref = run_inprocess(sc, switches=[(first, "simplified3")])
     assert_same_run(tr, ref)
-
-
-def test_controller_node_rejects_a_strategy_of_another_machine():
-    """In-process node with its own context: db_mptc is an IM strategy, so a PMSM controller
-    refuses it with the valid names and keeps running what it runs."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.parameter import Parameter
-
-    from predictive_drive.config import resolve_scenario_path
-    from predictive_drive.ros.nodes import TorqueControllerNode
-
-    ctx = Context()
-    path = resolve_scenario_path("ipmsm_short")
-    rclpy.init(context=ctx, args=["--ros-args", "--params-file", str(path)])
-    try:
-        node = TorqueControllerNode(context=ctx)
-        try:
-            res = node.on_set_parameters([Parameter("strategy", Parameter.Type.STRING, "db_mptc")])
-            assert not res.successful
-            assert "machine 'pmsm'" in res.reason
-            assert "valid: mptc, simplified1, simplified2, simplified3" in res.reason
-            assert node.ctrl.strategy.name == "mptc"
-            ok = node.on_set_parameters(
-                [Parameter("strategy", Parameter.Type.STRING, "simplified2")]
-            )
-            assert ok.successful and node.ctrl.strategy.name == "simplified2"
-        finally:
-            node.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=ctx)

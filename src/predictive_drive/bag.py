@@ -11,7 +11,6 @@ chunk; :func:`read_bag` falls back to a streaming read for such files.
 from __future__ import annotations
 
 import json
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +24,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from . import __version__
+from .core.signals import STATE_INDEX
 from .core.trace import RECORDS, Trace, TraceBuilder
 from .errors import BagError
 from .interface import CODECS, RECORD_TOPICS, TOPICS, message_definition, type_hash
@@ -33,6 +33,7 @@ __all__ = ["BagInfo", "BagWriter", "read_bag"]
 
 CHUNK_SIZE = 256 * 1024
 META_NAME = "predictive_drive"
+K = STATE_INDEX.k  #: the step index: the first field of every per-step record
 
 
 def _qos_yaml(topic_key: str) -> str:
@@ -57,7 +58,6 @@ class BagWriter:
         self._first = None
         self._last = 0
         self._closed = False
-        self._rosbag2_meta = None
         for key, topic in TOPICS.items():
             schema = self._writer.register_schema(
                 topic.type, "ros2msg", message_definition(topic.type).encode()
@@ -103,13 +103,6 @@ class BagWriter:
         self._writer.finish()
         self._file.close()
         self._write_metadata_yaml()
-
-    def abort(self) -> None:
-        """Remove a bag that never received a message (nothing half-written is left behind)."""
-        if not self._closed:
-            self._closed = True
-            self._file.close()
-        shutil.rmtree(self.directory, ignore_errors=True)
 
     @property
     def message_count(self) -> int:
@@ -237,7 +230,7 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
         if rec is None:
             continue
         values = CODECS[RECORD_TOPICS[rec]].decode(message.data)
-        rows[rec][int(values[0])] = values
+        rows[rec][int(values[K])] = values
     ts = float(info["ts"])
     builder = TraceBuilder(ts, tuple(json.loads(info["strategy_names"])))
     # keep the longest prefix of whole steps: states and references 0..n, commands 0..n-1

@@ -3,16 +3,42 @@
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from . import __version__, api
+import numpy as np
+
+from . import __version__
+from .api import analyze, bench, report, reproduce, run
 from .errors import PredictiveDriveError
-from .ros.graph import AFFINITIES, SCHED_POLICIES
+from .reports.papers import PAPER_TABLES
+from .ros.placement import AFFINITIES, SCHED_POLICIES
 
 __all__ = ["main"]
+
+
+def _finite(obj: Any) -> Any:
+    """NaN/inf → None, so ``--json`` prints strict JSON (null where a figure does not exist)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, np.floating):
+        return _finite(float(obj))
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def dumps(obj: Any) -> str:
+    """One line of strict JSON."""
+    return json.dumps(_finite(obj), indent=None, allow_nan=False)
 
 
 def _progress(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
@@ -86,7 +112,7 @@ def _print_metrics(d: dict[str, Any]) -> None:
 def cmd_run(a: argparse.Namespace) -> int:
     update, close = _progress(sys.stderr.isatty() and not a.json)
     try:
-        r = api.run(
+        r = run.run(
             a.scenario,
             strategy=a.strategy,
             duration=a.duration,
@@ -100,16 +126,16 @@ def cmd_run(a: argparse.Namespace) -> int:
     finally:
         close()
     if a.json:
-        print(api.dumps(r.as_dict()))
+        print(dumps(r.as_dict()))
     else:
         _print_metrics(r.as_dict())
     return 0
 
 
 def cmd_report(a: argparse.Namespace) -> int:
-    d = api.report(a.bag)
+    d = report.report(a.bag)
     if a.json:
-        print(api.dumps(d))
+        print(dumps(d))
     else:
         _print_metrics(d)
         if not d["complete"]:
@@ -120,37 +146,6 @@ def cmd_report(a: argparse.Namespace) -> int:
     return 0
 
 
-#: per reproduced table: (title, key, scale, format) — each column shows ours and the paper's
-_COLUMNS: dict[str, list[tuple[str, str, float, str]]] = {
-    "im_paper": [
-        ("T_RMSE N·m", "t_rmse", 1.0, ".4f"),
-        ("psi_RMSE Wb", "psi_rmse", 1.0, ".5f"),
-        ("deadbeat %", "deadbeat_share", 100.0, ".2f"),
-        ("f_ave kHz", "f_ave_hz", 1e-3, ".3f"),
-        ("Cal_ave", "cal_ave", 1.0, ".2f"),
-        ("µs/step", "compute_us_per_step", 1.0, ".2f"),
-    ],
-    "spmsm_analysis": [
-        ("T_rip N·m", "t_rmse", 1.0, ".4f"),
-        ("psi_rip Wb", "psi_rmse", 1.0, ".4f"),
-        ("Cal_ave", "cal_ave", 1.0, ".2f"),
-        ("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
-        ("V0 %", "zero_share", 100.0, ".1f"),
-    ],
-    "ipmsm_validation": [
-        ("T_rip N·m", "t_rmse", 1.0, ".4f"),
-        ("psi_rip Wb", "psi_rmse", 1.0, ".4f"),
-        ("THD %", "thd", 100.0, ".2f"),
-        ("(harm.)", "thd_harmonics", 100.0, ".2f"),
-        ("Cal_ave", "cal_ave", 1.0, ".2f"),
-        ("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
-        ("V0 %", "zero_share", 100.0, ".2f"),
-        ("compute ratio", "compute_ratio", 1.0, ".3f"),
-        ("µs/step", "compute_ns_hot", 1e-3, ".2f"),
-    ],
-}
-
-
 def _row_label(r: dict[str, Any]) -> str:
     if "torque_threshold" in r:
         return f"{r['strategy']} ±{r['torque_threshold']:g}"
@@ -158,35 +153,35 @@ def _row_label(r: dict[str, Any]) -> str:
 
 
 def cmd_reproduce(a: argparse.Namespace) -> int:
-    d = api.reproduce(a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration)
+    d = reproduce.reproduce(a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration)
     if a.json:
-        print(api.dumps(d))
+        print(dumps(d))
         return 0
-    cols = _COLUMNS[d["scenario"]]
+    cols = PAPER_TABLES[d["scenario"]].columns
     print(f"{d['scenario']} vs {d['paper']}  (engine {d['engine']})")
     if d["duration"] is not None:
         print(f"NOTE: runs shortened to {d['duration']:g} s; not comparable with the paper")
     width = max(len(_row_label(r)) for r in d["rows"]) + 1
-    head = f"{'':<{width}}" + "".join(f" {t:>17}" for t, *_ in cols)
+    head = f"{'':<{width}}" + "".join(f" {c.title:>17}" for c in cols)
     sub = f"{'':<{width}}" + "".join(f" {'ours':>8} {'paper':>8}" for _ in cols)
     print(head)
     print(sub)
     for r in d["rows"]:
         line = f"{_row_label(r):<{width}}"
-        for _, key, scale, fmt in cols:
-            ours = r.get(key)
-            paper = r["paper"].get(key)
-            line += f" {format(ours * scale, fmt) if ours is not None else '-':>8}"
-            line += f" {format(paper * scale, fmt) if paper is not None else '-':>8}"
+        for c in cols:
+            ours = r.get(c.key)
+            paper = r["paper"].get(c.key)
+            line += f" {format(ours * c.scale, c.fmt) if ours is not None else '-':>8}"
+            line += f" {format(paper * c.scale, c.fmt) if paper is not None else '-':>8}"
         print(line)
     print(f"How computed: {d['how']}")
     return 0
 
 
 def cmd_analyze(a: argparse.Namespace) -> int:
-    d = api.analyze(a.bag, threshold=a.threshold, write_tables=a.write_tables)
+    d = analyze.analyze(a.bag, threshold=a.threshold, write_tables=a.write_tables)
     if a.json:
-        print(api.dumps(d))
+        print(dumps(d))
         return 0
     print(
         f"{d['bag']}: {d['scenario']} / {d['strategy']}, {d['steps']} steps over "
@@ -225,9 +220,9 @@ def cmd_analyze(a: argparse.Namespace) -> int:
 
 
 def cmd_bench(a: argparse.Namespace) -> int:
-    d = api.bench(repeats=a.repeats, steps=a.steps, ros=not a.no_ros)
+    d = bench.bench(repeats=a.repeats, steps=a.steps, ros=not a.no_ros)
     if a.json:
-        print(api.dumps(d))
+        print(dumps(d))
         return 0
     rt = d["real_time_steps_per_s"]
     print(
@@ -280,7 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--engine",
         default="ros",
-        choices=api.ENGINES,
+        choices=run.ENGINES,
         help="ros: four node processes (default); composed: one process; inprocess: no ROS",
     )
     r.add_argument(
@@ -322,8 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep.set_defaults(func=cmd_report)
 
     rp = sub.add_parser("reproduce", help="a paper's table side by side with our figures")
-    rp.add_argument("scenario", choices=sorted(api.PAPER_TABLES))
-    rp.add_argument("--engine", default="inprocess", choices=api.ENGINES)
+    rp.add_argument("scenario", choices=sorted(PAPER_TABLES))
+    rp.add_argument("--engine", default="inprocess", choices=run.ENGINES)
     rp.add_argument(
         "--repeats", type=int, default=5, help="timing repeats for compute ratios (median)"
     )

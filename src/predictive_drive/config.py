@@ -2,7 +2,9 @@
 
 The same file feeds the nodes with ``--ros-args --params-file``. Sections: ``/**`` (shared by all
 nodes) and ``/drive/<node>`` for plant, speed_pi, torque_controller and metrics_logger. Nested maps
-(``motor:``) become dotted ROS parameters (``motor.r_s``).
+(``motor:``) become dotted ROS parameters (``motor.r_s``). The shared ``machine`` picks the plant's
+motor model; the torque controller's ``family`` picks its controller family, whose settings class
+reads the rest of that section.
 """
 
 from __future__ import annotations
@@ -14,46 +16,35 @@ from typing import Any
 
 import yaml
 
-from .core.control import InductionControllerParams, Machine, PMSMControllerParams
-from .core.motors import PMSM, InductionMotor
+from .core.control import CONTROLLERS, controller_class
+from .core.control.speed_pi import SpeedPIParams
+from .core.machines import Machine, motor_class
 from .core.scenario import LoggerParams, PlantParams, RunParams, Scenario
-from .core.speed_pi import SpeedPIParams
 from .errors import ConfigError
+from .interface import NAMESPACE, NODES
 
 __all__ = [
-    "NAMESPACE",
-    "MACHINE_SECTIONS",
-    "NODE_SECTIONS",
+    "FAMILY_KEY",
+    "LEGACY_FAMILIES",
+    "SHARED",
+    "build_section",
     "config_dir",
-    "flatten",
+    "family_of",
     "load_scenario",
     "load_scenario_text",
+    "nested_types",
     "resolve_scenario_path",
     "scenario_names",
+    "section_class",
+    "section_classes",
     "section_fields",
 ]
 
-NAMESPACE = "/drive"
 SHARED = "/**"
-Sections = dict[str, tuple[type, dict[str, type]]]
-
-
-def _sections(motor: type, controller: type) -> Sections:
-    return {
-        "plant": (PlantParams, {"motor": motor}),
-        "speed_pi": (SpeedPIParams, {}),
-        "torque_controller": (controller, {"motor": motor}),
-        "metrics_logger": (LoggerParams, {}),
-    }
-
-
-#: machine → node name → (dataclass built from its section, nested dataclasses by key)
-MACHINE_SECTIONS: dict[Machine, Sections] = {
-    Machine.INDUCTION: _sections(InductionMotor, InductionControllerParams),
-    Machine.PMSM: _sections(PMSM, PMSMControllerParams),
-}
-#: the node sections every scenario file has (their classes depend on the machine)
-NODE_SECTIONS = tuple(MACHINE_SECTIONS[Machine.INDUCTION])
+#: the torque controller's key that names its controller family (not a field of its settings)
+FAMILY_KEY = "family"
+#: the family of a recording made before scenarios named one, by machine
+LEGACY_FAMILIES = {Machine.INDUCTION: "mptc_im", Machine.PMSM: "mptc_pmsm"}
 
 
 def config_dir() -> Path:
@@ -92,6 +83,39 @@ def section_fields(cls: type) -> list[str]:
     return [f.name for f in dataclasses.fields(cls)]
 
 
+def nested_types(cls: type) -> dict[str, type]:
+    """The fields of ``cls`` that are themselves parameter dataclasses (``motor``), by name."""
+    hints = typing.get_type_hints(cls)
+    return {
+        f.name: hints[f.name]
+        for f in dataclasses.fields(cls)
+        if isinstance(hints[f.name], type) and dataclasses.is_dataclass(hints[f.name])
+    }
+
+
+def section_class(
+    node: str, machine: str, family: str | None = None
+) -> tuple[type, dict[str, type]]:
+    """(dataclass the node's section builds, nested dataclasses by key) for a machine type; the
+    torque controller's depends on its controller ``family``."""
+    if node == "torque_controller":
+        if family is None:
+            raise ValueError("the torque controller's section depends on its family")
+        ctrl = controller_class(family).params_type
+        return ctrl, nested_types(ctrl)
+    fixed: dict[str, tuple[type, dict[str, type]]] = {
+        "plant": (PlantParams, {"motor": motor_class(machine)}),
+        "speed_pi": (SpeedPIParams, {}),
+        "metrics_logger": (LoggerParams, {}),
+    }
+    return fixed[node]
+
+
+def section_classes(machine: str, family: str) -> dict[str, tuple[type, dict[str, type]]]:
+    """:func:`section_class` of every node."""
+    return {node: section_class(node, machine, family) for node in NODES}
+
+
 def _coerce(value: Any, hint: Any, where: str) -> Any:
     origin = typing.get_origin(hint)
     if hint is float:
@@ -115,7 +139,8 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     raise ConfigError(f"{where}: unsupported parameter type {hint!r}")  # pragma: no cover
 
 
-def _build(cls: type, data: Any, nested: dict[str, type], where: str) -> Any:
+def build_section(cls: type, data: Any, nested: dict[str, type], where: str) -> Any:
+    """The dataclass ``cls`` from one section's parameters; ConfigError names ``where`` and the key."""
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: expected a mapping of parameters, got {data!r}")
     names = section_fields(cls)
@@ -131,7 +156,7 @@ def _build(cls: type, data: Any, nested: dict[str, type], where: str) -> Any:
             continue
         key_where = f"{where}.{f.name}"
         if f.name in nested:
-            kwargs[f.name] = _build(nested[f.name], data[f.name], {}, key_where)
+            kwargs[f.name] = build_section(nested[f.name], data[f.name], {}, key_where)
         else:
             kwargs[f.name] = _coerce(data[f.name], hints[f.name], key_where)
     try:
@@ -140,11 +165,23 @@ def _build(cls: type, data: Any, nested: dict[str, type], where: str) -> Any:
         raise ConfigError(f"{where}: {e}") from None
 
 
-def _params(doc: dict[str, Any], key: str, path: Path) -> dict[str, Any]:
+def family_of(params: dict[str, Any], where: str, default: str | None = None) -> str:
+    """The controller family a torque_controller section names; ConfigError lists the valid ones."""
+    family = params.get(FAMILY_KEY, default)
+    if family is None:
+        raise ConfigError(f"{where}: missing key {FAMILY_KEY!r}; one of {', '.join(CONTROLLERS)}")
+    if family not in CONTROLLERS:
+        raise ConfigError(
+            f"{where}.{FAMILY_KEY}: {family!r} is not one of {', '.join(CONTROLLERS)}"
+        )
+    return str(family)
+
+
+def _params(doc: dict[str, Any], key: str, path: str | Path) -> dict[str, Any]:
     if key not in doc:
         raise ConfigError(
             f"{path}: missing section {key!r} (a ROS 2 parameter file needs "
-            f"{', '.join([SHARED] + [f'{NAMESPACE}/{n}' for n in NODE_SECTIONS])})"
+            f"{', '.join([SHARED] + [f'{NAMESPACE}/{n}' for n in NODES])})"
         )
     section = doc[key]
     if not isinstance(section, dict) or set(section) != {"ros__parameters"}:
@@ -155,48 +192,57 @@ def _params(doc: dict[str, Any], key: str, path: Path) -> dict[str, Any]:
     return params
 
 
-def load_scenario(name_or_path: str | Path) -> Scenario:
-    """Read and validate a scenario; every error names the file and the key."""
+def load_scenario(
+    name_or_path: str | Path, *, strategy: str | None = None, duration: float | None = None
+) -> Scenario:
+    """Read and validate a scenario, with the command line's overrides applied (the starting
+    strategy, the run length in s); every error names the file and the key."""
     path = resolve_scenario_path(name_or_path)
-    return load_scenario_text(path.read_text(), path)
+    sc = load_scenario_text(path.read_text(), path)
+    return sc.with_strategy(strategy).with_duration(duration)
 
 
-def load_scenario_text(text: str, path: str | Path) -> Scenario:
-    """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in)."""
+def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> Scenario:
+    """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in).
+    ``legacy``: a recording's stored text, which may predate the ``family`` key."""
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as e:
         raise ConfigError(f"{path}: not valid YAML: {e}") from None
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected a ROS 2 parameter file (a mapping of node sections)")
-    expected = {SHARED, *(f"{NAMESPACE}/{n}" for n in NODE_SECTIONS)}
+    expected = {SHARED, *(f"{NAMESPACE}/{n}" for n in NODES)}
     unknown = sorted(set(doc) - expected)
     if unknown:
         raise ConfigError(
             f"{path}: unknown section {unknown[0]!r}; allowed: {', '.join(sorted(expected))}"
         )
-    run = _build(RunParams, _params(doc, SHARED, path), {}, f"{path}: {SHARED}")
+    run = build_section(RunParams, _params(doc, SHARED, path), {}, f"{path}: {SHARED}")
+    ctrl_key = f"{NAMESPACE}/torque_controller"
+    ctrl_params = dict(_params(doc, ctrl_key, path))
+    default = LEGACY_FAMILIES[Machine(run.machine)] if legacy else None
+    family = family_of(ctrl_params, f"{path}: {ctrl_key}", default)
+    ctrl_params.pop(FAMILY_KEY, None)
+    if (controls := controller_class(family).machine) != run.machine:
+        raise ConfigError(
+            f"{path}: {ctrl_key}.{FAMILY_KEY}: {family!r} controls a {controls} machine, but the "
+            f"scenario's machine is {run.machine!r}"
+        )
     built = {}
-    for node, (cls, nested) in MACHINE_SECTIONS[Machine(run.machine)].items():
+    for node, (cls, nested) in section_classes(run.machine, family).items():
         key = f"{NAMESPACE}/{node}"
-        built[node] = _build(cls, _params(doc, key, path), nested, f"{path}: {key}")
-    return Scenario(
-        run,
-        built["plant"],
-        built["speed_pi"],
-        built["torque_controller"],
-        built["metrics_logger"],
-        str(path),
-    )
-
-
-def flatten(obj: Any, prefix: str = "") -> dict[str, Any]:
-    """Dataclass → dotted ROS parameter names and values (tuples as lists)."""
-    out: dict[str, Any] = {}
-    for f in dataclasses.fields(obj):
-        v = getattr(obj, f.name)
-        if dataclasses.is_dataclass(v):
-            out.update(flatten(v, f"{prefix}{f.name}."))
-        else:
-            out[f"{prefix}{f.name}"] = list(v) if isinstance(v, tuple) else v
-    return out
+        params = ctrl_params if node == "torque_controller" else _params(doc, key, path)
+        built[node] = build_section(cls, params, nested, f"{path}: {key}")
+    try:
+        return Scenario(
+            run,
+            built["plant"],
+            built["speed_pi"],
+            built["torque_controller"],
+            built["metrics_logger"],
+            family=family,
+            source=str(path),
+            text=text,
+        )
+    except ConfigError as e:
+        raise ConfigError(f"{path}: {ctrl_key}: {e}") from None

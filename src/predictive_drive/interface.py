@@ -1,4 +1,5 @@
-"""The one module that owns the ROS interface: topic names, types, QoS and every message encoding.
+"""The one module that owns the ROS interface: the namespace, node and topic names, types, QoS and
+every message encoding.
 
 No rclpy here: messages are encoded to and decoded from CDR bytes by hand, so the nodes (raw publish /
 raw subscriptions), the in-process engine and the MCAP recorder all produce the *same bytes*.
@@ -22,7 +23,12 @@ from .core.signals import Command, Reference, State
 from .errors import BagError
 
 __all__ = [
+    "CLOCK_PERIOD",
+    "CODECS",
+    "LAUNCHER_NODE",
     "LOCKSTEP_QOS",
+    "NAMESPACE",
+    "NODES",
     "RECORD_TOPICS",
     "TOPICS",
     "Qos",
@@ -32,8 +38,22 @@ __all__ = [
     "encode_diagnostics",
     "encode_joint_state",
     "message_definition",
+    "node_name",
     "type_hash",
 ]
+
+#: every node of the drive lives in this namespace
+NAMESPACE = "/drive"
+#: the drive's nodes (each the name of its scenario section and of its executable ``<name>_node``)
+NODES = ("plant", "speed_pi", "torque_controller", "metrics_logger")
+#: the launcher's own node: it follows /clock for progress and sends timed strategy switches
+LAUNCHER_NODE = "launcher"
+
+
+def node_name(name: str) -> str:
+    """Fully qualified name of a drive node: ``plant`` → ``/drive/plant``."""
+    return name if name.startswith("/") else f"{NAMESPACE}/{name}"
+
 
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 
@@ -68,7 +88,6 @@ LOCKSTEP_QOS = Qos("reliable", "volatile", "keep_all", 0)
 #: decimated tool topics: reliable (so the recorder loses none; best-effort readers such as
 #: rclpy's time source still match) and a deep enough history for a slow reader
 TOOLS_QOS = Qos("reliable", "volatile", "keep_last", 1000)
-CLOCK_QOS = TOOLS_QOS
 
 
 @dataclass(frozen=True)
@@ -80,13 +99,13 @@ class Topic:
 
 
 TOPICS: dict[str, Topic] = {
-    "state": Topic("/drive/state", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, State._fields),
+    "state": Topic(f"{NAMESPACE}/state", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, State._fields),
     "reference": Topic(
-        "/drive/torque_reference", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Reference._fields
+        f"{NAMESPACE}/torque_reference", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Reference._fields
     ),
-    "command": Topic("/drive/command", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Command._fields),
-    "joint_states": Topic("/drive/joint_states", "sensor_msgs/msg/JointState", TOOLS_QOS),
-    "clock": Topic("/clock", "rosgraph_msgs/msg/Clock", CLOCK_QOS),
+    "command": Topic(f"{NAMESPACE}/command", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Command._fields),
+    "joint_states": Topic(f"{NAMESPACE}/joint_states", "sensor_msgs/msg/JointState", TOOLS_QOS),
+    "clock": Topic("/clock", "rosgraph_msgs/msg/Clock", TOOLS_QOS),
     "diagnostics": Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", TOOLS_QOS),
 }
 #: record name (core.trace.RECORDS) → topic key, for the three per-step signal topics
@@ -243,8 +262,8 @@ def encode_joint_state(t: float, position: float, velocity: float, effort: float
     return bytes(w.buf)
 
 
-#: diagnostic_msgs/DiagnosticStatus levels
-OK, WARN, ERROR, STALE = 0, 1, 2, 3
+#: diagnostic_msgs/DiagnosticStatus.ERROR (the running metrics report OK = 0 or WARN = 1)
+ERROR = 2
 
 
 def encode_diagnostics(

@@ -8,10 +8,19 @@ engines record the same bytes.
 
 from __future__ import annotations
 
+import os
+import time
 from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 from .bag import BagWriter
+from .config import load_scenario_text
+from .core.control import strategy_names
 from .core.metrics import LiveMetrics
+from .core.scenario import Scenario
+from .core.signals import STATE_INDEX
+from .core.timebase import every_steps
 from .interface import (
     CLOCK_PERIOD,
     CODECS,
@@ -24,26 +33,63 @@ from .interface import (
     stamp_ns,
 )
 
-__all__ = ["DIAGNOSTICS_NAME", "RunRecorder", "diagnostics_message", "tool_every", "tool_messages"]
+__all__ = [
+    "DIAGNOSTICS_NAME",
+    "RunRecorder",
+    "bag_info",
+    "default_bag_dir",
+    "diagnostics_message",
+    "scenario_of",
+    "tool_every",
+    "tool_messages",
+]
 
 DIAGNOSTICS_NAME = "predictive_drive: drive"
+T = STATE_INDEX.t  #: simulated time: the second field of every per-step record
+
+
+def bag_info(sc: Scenario, engine: str) -> dict[str, Any]:
+    """What a bag stores about its run (the ``predictive_drive`` metadata record)."""
+    return {
+        "scenario": sc.name,
+        "scenario_yaml": sc.text,
+        "scenario_source": sc.source,
+        "family": sc.family,
+        "strategy": sc.strategy,
+        "duration": repr(sc.run.duration),
+        "ts": repr(sc.ts),
+        "engine": engine,
+        "strategy_names": list(strategy_names(sc.family)),
+    }
+
+
+def scenario_of(info: dict[str, str], where: Path) -> Scenario:
+    """The scenario a recording was made with, from its ``predictive_drive`` metadata record."""
+    sc = load_scenario_text(info["scenario_yaml"], f"{where} (stored scenario)", legacy=True)
+    return sc.with_strategy(info["strategy"]).with_duration(float(info["duration"]))
+
+
+def default_bag_dir(sc: Scenario, root: str | Path = "bags") -> Path:
+    """``bags/<scenario>_<strategy>_<date-time>_<pid>``."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    return Path(root) / f"{sc.name}_{sc.strategy}_{stamp}_{os.getpid()}"
 
 
 def tool_every(ts: float) -> int:
-    return max(1, round(CLOCK_PERIOD / ts))
+    """/clock and /drive/joint_states go out every this many steps (CLOCK_PERIOD of sim time)."""
+    return every_steps(CLOCK_PERIOD, ts)
 
 
 def tool_messages(state: tuple[float, ...], every: int) -> list[tuple[str, int, bytes]]:
     """/clock and /drive/joint_states for state k when k is a multiple of ``every``."""
-    k = int(state[0])
+    S = STATE_INDEX
+    k = int(state[S.k])
     if k % every:
         return []
-    t = state[1]
+    t = state[S.t]
     ns = stamp_ns(t)
-    return [
-        ("clock", ns, encode_clock(t)),
-        ("joint_states", ns, encode_joint_state(t, state[10], state[4], state[7])),
-    ]
+    joint = encode_joint_state(t, state[S.theta_m], state[S.omega_m], state[S.torque])
+    return [("clock", ns, encode_clock(t)), ("joint_states", ns, joint)]
 
 
 def diagnostics_message(
@@ -85,7 +131,7 @@ class RunRecorder:
     def record(self, record: str, row: tuple[float, ...]) -> None:
         """In-process path: encode, write, and the plant's tool messages with each state."""
         key = RECORD_TOPICS[record]
-        self.writer.write(key, stamp_ns(row[1]), CODECS[key].encode(row))
+        self.writer.write(key, stamp_ns(row[T]), CODECS[key].encode(row))
         if self._tools and record == "state":
             for tkey, ns, data in tool_messages(row, self._every):
                 self.writer.write(tkey, ns, data)
@@ -95,12 +141,12 @@ class RunRecorder:
         """Node path: write the bytes as received, decode for the running metrics."""
         key = RECORD_TOPICS[record]
         row = CODECS[key].decode(data)
-        self.writer.write(key, stamp_ns(row[1]), data)
+        self.writer.write(key, stamp_ns(row[T]), data)
         self._feed(record, row)
         return row
 
     def _feed(self, record: str, row: tuple[float, ...]) -> None:
-        self.last_t = max(self.last_t, row[1])
+        self.last_t = max(self.last_t, row[T])
         self._diagnose(self.live.add(record, row))
 
     def finish(self) -> None:

@@ -1,15 +1,16 @@
 """The ROS-free core: numpy and the standard library only (a test holds it to that)."""
 
 __all__ = [
+    "analysis",
     "control",
+    "fields",
     "inverter",
+    "machines",
     "metrics",
-    "motors",
     "plant",
-    "profiles",
     "runner",
     "scenario",
     "signals",
-    "speed_pi",
+    "timebase",
     "trace",
 ]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ def utilization(
     return Utilization(threshold, int(vec.size), tuple(bands), six, twelve)
 
 
-def derive_candidates(counts: np.ndarray, *, min_relative: float = MIN_RELATIVE) -> list:
+def derive_candidates(counts: np.ndarray, *, min_relative: float = MIN_RELATIVE) -> list[Any]:
     """Candidate sets from per-class vector counts (any leading shape, last axis V0..V6) by
     :data:`DERIVATION_RULE`; nested lists of ascending vector numbers, V0 always first (the zero
     vector is always a candidate: strategies 2 and 3 keep it, paper 001 §4-5)."""
@@ -96,5 +97,5 @@ def derive_candidates(counts: np.ndarray, *, min_relative: float = MIN_RELATIVE)
         top = c[1:].max()
         keep = [0] + [v for v in range(1, 7) if top and c[v] >= min_relative * top]
         out[idx] = keep
-    result: list = out.tolist()
+    result: list[Any] = out.tolist()
     return result

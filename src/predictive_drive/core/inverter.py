@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import cmath
 import math
-from typing import NamedTuple
+from collections.abc import Sequence
 
-from .signals import new_record
+from .signals import PhasePulses, new_record
 
 __all__ = [
     "VECTOR_STATES",
@@ -73,17 +73,6 @@ def zero_state_for(previous: tuple[int, int, int]) -> tuple[int, int, int]:
     return (1, 1, 1) if sum(previous) >= 2 else (0, 0, 0)
 
 
-class PhasePulses(NamedTuple):
-    """One period's command: phase x is high on [delay_x, delay_x + duty_x), fractions of Ts."""
-
-    delay_a: float
-    delay_b: float
-    delay_c: float
-    duty_a: float
-    duty_b: float
-    duty_c: float
-
-
 def active_then_zero(
     vector: int, fraction: float, previous: tuple[int, int, int]
 ) -> tuple[PhasePulses, tuple[int, int, int]]:
@@ -109,7 +98,7 @@ def active_then_zero(
 
 
 def segments(
-    pulses: tuple[float, float, float, float, float, float], previous: tuple[int, int, int]
+    pulses: Sequence[float], previous: tuple[int, int, int]
 ) -> tuple[list[tuple[tuple[int, int, int], float]], tuple[int, int, int], int]:
     """Piecewise-constant switching states of one period.
 

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .signals import COMMAND_INDEX, REFERENCE_INDEX, STATE_INDEX
+from .timebase import every_steps, step_index
 from .trace import Trace
 
 __all__ = ["Metrics", "Spectrum", "compute_metrics", "phase_a_spectrum", "step_window"]
@@ -52,8 +55,8 @@ class Metrics:
 
 def step_window(trace: Trace, t_start: float, t_end: float) -> tuple[int, int]:
     """Steps [k0, k1) whose sample time lies in [t_start, t_end), clipped to the commands."""
-    k0 = max(0, math.ceil(t_start / trace.ts - 1e-9))
-    k1 = trace.steps if math.isinf(t_end) else min(trace.steps, math.ceil(t_end / trace.ts - 1e-9))
+    k0 = max(0, step_index(t_start, trace.ts))
+    k1 = trace.steps if math.isinf(t_end) else min(trace.steps, step_index(t_end, trace.ts))
     if k1 <= k0:
         raise ValueError(
             f"metrics window [{t_start}, {t_end}) s holds no step of this run "
@@ -143,7 +146,7 @@ def compute_metrics(
     for s in np.unique(strat):
         name = trace.strategy_names[s] if s < len(trace.strategy_names) else str(s)
         by_strategy[name] = float(np.median(ns[strat == s]))
-    return Metrics(
+    m = Metrics(
         t_start=k0 * trace.ts,
         t_end=k1 * trace.ts,
         steps=n,
@@ -157,20 +160,17 @@ def compute_metrics(
         compute_ns_median=float(np.median(ns)),
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
         compute_ns_median_by_strategy=by_strategy,
-        **_thd(trace, thd_window),
     )
-
-
-def _thd(trace: Trace, window: tuple[float, ...]) -> dict[str, float]:
-    if not window:
-        return {}
-    sp = phase_a_spectrum(trace, window[0], window[1])
-    return {
-        "thd": sp.thd,
-        "thd_harmonics": sp.thd_harmonics,
-        "thd_cycles": sp.cycles,
-        "thd_fundamental_hz": sp.fundamental_hz,
-    }
+    if not thd_window:
+        return m
+    sp = phase_a_spectrum(trace, thd_window[0], thd_window[1])
+    return dataclasses.replace(
+        m,
+        thd=sp.thd,
+        thd_harmonics=sp.thd_harmonics,
+        thd_cycles=sp.cycles,
+        thd_fundamental_hz=sp.fundamental_hz,
+    )
 
 
 class LiveMetrics:
@@ -187,7 +187,7 @@ class LiveMetrics:
     def __init__(self, *, ts: float, torque_limit: float, period: float = 1.0) -> None:
         self.ts = ts
         self.torque_limit = torque_limit
-        self.every = max(1, round(period / ts))
+        self.every = every_steps(period, ts)
         self._pending: dict[int, dict[str, tuple[float, ...]]] = {}
         self._reset()
         self.steps = 0
@@ -202,23 +202,24 @@ class LiveMetrics:
 
     def add(self, record: str, row: tuple[float, ...]) -> dict[str, float] | None:
         """Feed one record; returns a snapshot when a diagnostics period completes, else None."""
-        k = int(row[0])
+        k = int(row[0])  # k is the first field of every record
         slot = self._pending.setdefault(k, {})
         slot[record] = row
         if len(slot) < 3:
             return None
         del self._pending[k]
         s, r, c = slot["state"], slot["reference"], slot["command"]
-        te = s[7]
-        self._t_err2 += (te - r[2]) ** 2
-        self._psi_err2 += (math.hypot(s[8], s[9]) - r[3]) ** 2
-        self._est_err2 += (c[13] - te) ** 2
-        self._speed_err2 += (s[4] - r[4]) ** 2
-        self._transitions += s[12]
+        S, R, C = STATE_INDEX, REFERENCE_INDEX, COMMAND_INDEX
+        te = s[S.torque]
+        self._t_err2 += (te - r[R.torque_ref]) ** 2
+        self._psi_err2 += (math.hypot(s[S.psi_alpha], s[S.psi_beta]) - r[R.flux_ref]) ** 2
+        self._est_err2 += (c[C.torque_est] - te) ** 2
+        self._speed_err2 += (s[S.omega_m] - r[R.speed_ref]) ** 2
+        self._transitions += s[S.transitions]
         self._n += 1
         self.steps += 1
-        self._last_t = s[1]
-        self._last_strategy = c[8]
+        self._last_t = s[S.t]
+        self._last_strategy = c[C.strategy]
         if self.steps % self.every:
             return None
         return self.flush()

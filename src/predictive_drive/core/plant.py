@@ -8,38 +8,39 @@ exact discretisation for frozen ω, the PMSM's fused RK4).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from .inverter import clarke, segments
-from .motors import (
-    IM_STATE,
-    PMSM,
-    InductionCoefficients,
-    InductionMotor,
-    PMSMCoefficients,
-    induction_exact,
-    pmsm_rk4,
-)
-from .profiles import StepProfile
-from .signals import Command, State, new_record
+from .machines import Machine
+from .machines.induction import IM_STATE, InductionCoefficients, InductionMotor, induction_exact
+from .machines.pmsm import PMSM, PMSM_STATE, PMSMCoefficients, pmsm_rk4
+from .signals import COMMAND_INDEX, PULSES, State, new_record
+from .timebase import StepProfile
 
-__all__ = ["InductionPlant", "InverterPlant", "PMSMPlant", "rk4"]
+__all__ = ["PLANTS", "InductionPlant", "InverterPlant", "PMSMPlant", "make_plant", "rk4"]
 
 Dynamics = Callable[[float, Any, Any, Any], Any]
 TWO_PI = 2.0 * math.pi
+_K = COMMAND_INDEX.k
+_IM_I, _IM_PSI, _IM_W, _IM_TH = IM_STATE.i_s, IM_STATE.psi_s, IM_STATE.omega_m, IM_STATE.theta_m
+_PM_I, _PM_W, _PM_TH = PMSM_STATE.i_dq, PMSM_STATE.omega_m, PMSM_STATE.theta_m
 
 
-def rk4(f: Dynamics) -> Callable[..., tuple]:
+def rk4(f: Dynamics) -> Callable[..., tuple[Any, ...]]:
     """Classic 4th-order Runge-Kutta of ``f(t, x, u, c)``: returns ``integrate(t, x, u, c, h, n)``."""
 
-    def integrate(t: float, x: tuple, u: Any, c: Any, h: float, n: int) -> tuple:
+    def integrate(
+        t: float, x: tuple[Any, ...], u: Any, c: Any, h: float, n: int
+    ) -> tuple[Any, ...]:
         return _rk4(f, t, x, u, c, h, n)
 
     return integrate
 
 
-def _rk4(f: Dynamics, t: float, x: tuple, u: Any, c: Any, h: float, n: int) -> tuple:
+def _rk4(
+    f: Dynamics, t: float, x: tuple[Any, ...], u: Any, c: Any, h: float, n: int
+) -> tuple[Any, ...]:
     dt = h / n
     half = 0.5 * dt
     sixth = dt / 6.0
@@ -66,8 +67,8 @@ class InverterPlant:
     """
 
     coefficients: Any  #: class with ``of(motor)``: the machine's precomputed constants
-    x0: tuple  #: initial state
-    default_integrator: Callable[..., tuple]
+    x0: tuple[Any, ...]  #: initial state
+    default_integrator: Callable[..., tuple[Any, ...]]
 
     def __init__(
         self,
@@ -77,7 +78,7 @@ class InverterPlant:
         u_dc: float,
         load: StepProfile,
         max_substep: float,
-        integrator: Callable[..., tuple] | None = None,
+        integrator: Callable[..., tuple[Any, ...]] | None = None,
     ) -> None:
         self.motor = motor
         self.ts = ts
@@ -89,7 +90,7 @@ class InverterPlant:
         self._volts = {s: u_dc * clarke(*s) for s in _ALL_STATES}
         self.k = 0
         self.load = self._load.at(0)  #: N·m, load torque during the coming period k
-        self.x: tuple = self.x0
+        self.x: tuple[Any, ...] = self.x0
         self.switches = (0, 0, 0)
         self._transitions = 0
 
@@ -119,10 +120,13 @@ class InverterPlant:
             ),
         )
 
-    def step(self, command: Command) -> State:
-        if command[0] != self.k:  # k as float
-            raise ValueError(f"plant is at step {self.k} but got the command for step {command.k}")
-        segs, self.switches, self._transitions = segments(command[2:8], self.switches)
+    def step(self, command: Sequence[float]) -> State:
+        """Apply ``command`` (a :class:`Command`, or its row of numbers) for one period."""
+        if command[_K] != self.k:  # k as float
+            raise ValueError(
+                f"plant is at step {self.k} but got the command for step {command[_K]:g}"
+            )
+        segs, self.switches, self._transitions = segments(command[PULSES], self.switches)
         ts = self.ts
         t = self.k * ts
         load = self.load  # constant over the period
@@ -154,18 +158,11 @@ class InductionPlant(InverterPlant):
     default_integrator = staticmethod(induction_exact)
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
-        i, psi, w, th = self.x
+        x = self.x
+        i, psi, w, th = x[_IM_I], x[_IM_PSI], x[_IM_W], x[_IM_TH]
         c = self._coef
         te = c.torque_k * (psi.real * i.imag - psi.imag * i.real)
         return i, w, (c.p * th) % TWO_PI, te, psi, th
-
-    @property
-    def i_s(self) -> complex:
-        return self.x[IM_STATE.i_s]
-
-    @property
-    def psi_s(self) -> complex:
-        return self.x[IM_STATE.psi_s]
 
 
 class PMSMPlant(InverterPlant):
@@ -178,7 +175,8 @@ class PMSMPlant(InverterPlant):
     default_integrator = staticmethod(pmsm_rk4)
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
-        i_dq, w, th = self.x
+        x = self.x
+        i_dq, w, th = x[_PM_I], x[_PM_W], x[_PM_TH]
         c = self._coef
         the = c.p * th
         rot = complex(math.cos(the), math.sin(the))
@@ -188,3 +186,16 @@ class PMSMPlant(InverterPlant):
 
 
 _ALL_STATES = [(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+
+#: machine type → plant class
+PLANTS: dict[str, type[InverterPlant]] = {
+    Machine.INDUCTION: InductionPlant,
+    Machine.PMSM: PMSMPlant,
+}
+
+
+def make_plant(
+    machine: str, motor: Any, *, ts: float, u_dc: float, load: StepProfile, max_substep: float
+) -> InverterPlant:
+    """The plant of a machine type (every engine and the plant node alike)."""
+    return PLANTS[machine](motor, ts=ts, u_dc=u_dc, load=load, max_substep=max_substep)

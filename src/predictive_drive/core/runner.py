@@ -9,74 +9,43 @@ plant applies command k for Ts and returns state k+1. Each step's records also g
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
 
-from .control import (
-    InductionController,
-    InductionControllerParams,
-    PMSMController,
-    PMSMControllerParams,
-    PredictiveController,
-    strategy_names,
-)
-from .motors import PMSM, InductionMotor
-from .plant import InductionPlant, InverterPlant, PMSMPlant
+from .control import Controller, make_controller, strategy_names
+from .control.speed_pi import SpeedPI
+from .plant import InverterPlant, make_plant
 from .scenario import PlantParams, Scenario
-from .speed_pi import SpeedPI
 from .trace import Trace, TraceBuilder
 
-__all__ = ["CONTROLLERS", "PLANTS", "Components", "build", "build_controller", "run_inprocess"]
+__all__ = ["Components", "build", "build_controller", "build_plant", "run_inprocess"]
 
-Sink = Callable[[str, tuple], None]
-
-
-#: motor parameter class → plant class
-PLANTS: Mapping[type, type[InverterPlant]] = {InductionMotor: InductionPlant, PMSM: PMSMPlant}
-#: controller parameter class → controller class
-CONTROLLERS: Mapping[type, type[PredictiveController]] = {
-    InductionControllerParams: InductionController,
-    PMSMControllerParams: PMSMController,
-}
+Sink = Callable[[str, tuple[float, ...]], None]
 
 
 @dataclasses.dataclass
 class Components:
     plant: InverterPlant
     speed_pi: SpeedPI
-    controller: PredictiveController
+    controller: Controller
 
 
-def with_strategy(scenario: Scenario, strategy: str | None) -> Scenario:
-    if strategy is None:
-        return scenario
-    ctrl = dataclasses.replace(scenario.controller, strategy=strategy)
-    return dataclasses.replace(scenario, controller=ctrl)
-
-
-def build_plant(p: PlantParams, *, ts: float) -> InverterPlant:
+def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
     """The plant of a scenario's plant section (shared by the in-process engine and plant_node)."""
-    cls: Any = PLANTS[type(p.motor)]
-    plant: InverterPlant = cls(
-        p.motor, ts=ts, u_dc=p.u_dc, load=p.load_profile(), max_substep=p.max_substep
+    return make_plant(
+        machine, p.motor, ts=ts, u_dc=p.u_dc, load=p.load_profile(), max_substep=p.max_substep
     )
-    return plant
 
 
-def build_controller(
-    params: InductionControllerParams | PMSMControllerParams, *, ts: float
-) -> PredictiveController:
-    """The controller of a scenario's torque_controller section (engine and node alike)."""
-    cls: Any = CONTROLLERS[type(params)]
-    ctrl: PredictiveController = cls(params, ts=ts)
-    return ctrl
+def build_controller(scenario: Scenario) -> Controller:
+    """The controller of a scenario's torque_controller section."""
+    return make_controller(scenario.family, scenario.controller, ts=scenario.ts)
 
 
 def build(scenario: Scenario) -> Components:
     return Components(
-        plant=build_plant(scenario.plant, ts=scenario.ts),
+        plant=build_plant(scenario.run.machine, scenario.plant, ts=scenario.ts),
         speed_pi=SpeedPI(scenario.speed_pi, ts=scenario.ts),
-        controller=build_controller(scenario.controller, ts=scenario.ts),
+        controller=build_controller(scenario),
     )
 
 
@@ -95,7 +64,7 @@ def run_inprocess(
     n = scenario.run.steps if steps is None else steps
     c = build(scenario)
     plant, pi, ctrl = c.plant, c.speed_pi, c.controller
-    builder = TraceBuilder(scenario.ts, strategy_names(ctrl.machine))
+    builder = TraceBuilder(scenario.ts, strategy_names(scenario.family))
     (s_add, s_pack), (r_add, r_pack), (c_add, c_pack) = (
         builder.packer(r) for r in ("state", "reference", "command")
     )

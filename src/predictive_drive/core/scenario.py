@@ -2,59 +2,50 @@
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 from ..errors import ConfigError
-from .control import InductionControllerParams, Machine, PMSMControllerParams
-from .motors import PMSM, InductionMotor
-from .profiles import StepProfile
-from .speed_pi import SpeedPIParams
+from .control import controller_class
+from .control.speed_pi import SpeedPIParams
+from .fields import check_fields, choice, quantity
+from .machines import Machine
+from .timebase import StepProfile, step_index
 
 __all__ = ["LoggerParams", "PlantParams", "RunParams", "Scenario"]
 
 
 @dataclass(frozen=True)
 class RunParams:
-    """Shared by every node. ts: control period, s; duration: simulated length, s."""
+    """Shared by every node: what runs and for how long."""
 
-    scenario: str
-    machine: str
-    ts: float
-    duration: float
+    scenario: str = choice("scenario name (config/<name>.yaml)")
+    machine: str = choice("machine type of the plant", tuple(m.value for m in Machine))
+    ts: float = quantity("control period", "s", gt=0)
+    duration: float = quantity("simulated run length", "s", gt=0)
 
     def __post_init__(self) -> None:
-        if self.machine not in [m.value for m in Machine]:
-            raise ConfigError(
-                f"machine: {self.machine!r} is not one of {', '.join(m.value for m in Machine)}"
-            )
-        for name in ("ts", "duration"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ConfigError(f"{name} must be a positive number of seconds, got {v!r}")
+        check_fields(self)
 
     @property
     def steps(self) -> int:
-        return round(self.duration / self.ts)
+        """Control periods in the run: every step whose sample instant lies before ``duration``."""
+        return step_index(self.duration, self.ts)
 
 
 @dataclass(frozen=True)
 class PlantParams:
-    """Plant: machine, inverter (u_dc in V), load steps (times in s, values in N·m), RK4 sub-step (s)."""
+    """Plant: machine, inverter, load steps, integrator sub-step."""
 
-    motor: InductionMotor | PMSM
-    u_dc: float
-    load_times: tuple[float, ...]
-    load_values: tuple[float, ...]
-    max_substep: float
+    motor: Any  #: the machine type's motor parameters (:data:`~.machines.MOTORS`)
+    u_dc: float = quantity("DC-link voltage", "V", gt=0)
+    load_times: tuple[float, ...] = quantity("times of the load-torque steps", "s", ge=0)
+    load_values: tuple[float, ...] = quantity("load torque from each time on", "N·m")
+    max_substep: float = quantity("integrator sub-step bound", "s", gt=0)
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.u_dc) and self.u_dc > 0):
-            raise ConfigError(f"plant.u_dc must be a positive voltage, got {self.u_dc!r}")
-        if not (math.isfinite(self.max_substep) and self.max_substep > 0):
-            raise ConfigError(
-                f"plant.max_substep must be a positive time, got {self.max_substep!r}"
-            )
+        check_fields(self)
         self.load_profile()
 
     def load_profile(self) -> StepProfile:
@@ -63,22 +54,25 @@ class PlantParams:
 
 @dataclass(frozen=True)
 class LoggerParams:
-    """Metrics window [window_start, window_end) in s (paper 000: 0.05-6 s). thd_window: [start,
-    end] in s of the steady-state stretch whose phase-a current THD is reported (whole electrical
-    cycles inside it), or empty for none."""
+    """Metrics window [window_start, window_end) (paper 000: 0.05-6 s); thd_window: [start, end]
+    of the steady-state stretch whose phase-a current THD is reported (whole electrical cycles
+    inside it), or empty for none."""
 
-    window_start: float
-    window_end: float
-    thd_window: tuple[float, ...] = ()
+    window_start: float = quantity("start of the metrics window", "s", ge=0)
+    window_end: float = quantity("end of the metrics window", "s", gt=0)
+    thd_window: tuple[float, ...] = quantity(
+        "[start, end] of the phase-a THD window, or [] for none", "s", ge=0, default=()
+    )
 
     def __post_init__(self) -> None:
-        if not (0 <= self.window_start < self.window_end):
+        check_fields(self)
+        if not self.window_start < self.window_end:
             raise ConfigError(
-                f"metrics_logger: need 0 <= window_start < window_end, got "
+                f"metrics_logger: need window_start < window_end, got "
                 f"{self.window_start}, {self.window_end}"
             )
         if self.thd_window and not (
-            len(self.thd_window) == 2 and 0 <= self.thd_window[0] < self.thd_window[1]
+            len(self.thd_window) == 2 and self.thd_window[0] < self.thd_window[1]
         ):
             raise ConfigError(
                 f"metrics_logger.thd_window must be [] or [start, end] with 0 <= start < end s, "
@@ -88,12 +82,31 @@ class LoggerParams:
 
 @dataclass(frozen=True)
 class Scenario:
+    """One run's parameters. ``family`` names the controller family
+    (:data:`~.control.CONTROLLERS`) whose ``params_type`` ``controller`` is; ``source`` and
+    ``text`` are the file it was read from and its text (what a recording stores)."""
+
     run: RunParams
     plant: PlantParams
     speed_pi: SpeedPIParams
-    controller: InductionControllerParams | PMSMControllerParams
+    controller: Any
     logger: LoggerParams
+    family: str
     source: str = ""
+    text: str = ""
+
+    def __post_init__(self) -> None:
+        cls = controller_class(self.family)
+        if not isinstance(self.controller, cls.params_type):
+            raise ConfigError(
+                f"torque_controller: family {self.family!r} takes {cls.params_type.__name__}, "
+                f"got {type(self.controller).__name__}"
+            )
+        if cls.machine != self.run.machine:
+            raise ConfigError(
+                f"torque_controller.family: {self.family!r} controls a {cls.machine.value} "
+                f"machine, but the scenario's machine is {self.run.machine!r}"
+            )
 
     @property
     def name(self) -> str:
@@ -106,3 +119,29 @@ class Scenario:
     @property
     def machine(self) -> Machine:
         return Machine(self.run.machine)
+
+    @property
+    def strategy(self) -> str:
+        """The strategy the controller starts with."""
+        return str(self.controller.strategy)
+
+    def with_strategy(self, strategy: str | None) -> Scenario:
+        """The same scenario starting with another strategy of its family (None: unchanged);
+        ConfigError lists the family's strategies."""
+        if strategy is None:
+            return self
+        names = tuple(controller_class(self.family).strategies)
+        if strategy not in names:
+            raise ConfigError(
+                f"strategy: unknown strategy {strategy!r} for controller family "
+                f"{self.family!r}; valid: {', '.join(names)}"
+            )
+        return dataclasses.replace(
+            self, controller=dataclasses.replace(self.controller, strategy=strategy)
+        )
+
+    def with_duration(self, duration: float | None) -> Scenario:
+        """The same scenario run for ``duration`` s (None: unchanged)."""
+        if duration is None:
+            return self
+        return dataclasses.replace(self, run=dataclasses.replace(self.run, duration=duration))

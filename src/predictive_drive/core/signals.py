@@ -1,15 +1,29 @@
-"""The three per-step signal records exchanged by the components (and, later, the ROS topics).
+"""The three per-step signal records exchanged by the components and the ROS topics: the one owner
+of their layouts.
 
 Field order here *is* the wire order: :mod:`predictive_drive.interface` serialises these tuples as
 labelled ``std_msgs/Float64MultiArray`` with exactly these labels. Add a field here and it is added
-everywhere (topics, recordings, reports).
+everywhere (topics, recordings, reports). Code that holds a record as a plain row of numbers reads
+it by name through the index records :data:`STATE_INDEX`, :data:`REFERENCE_INDEX` and
+:data:`COMMAND_INDEX` (``row[STATE_INDEX.torque]``), never by a bare position.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
-__all__ = ["Command", "Reference", "State", "new_record"]
+__all__ = [
+    "COMMAND_DIAGNOSTICS",
+    "COMMAND_INDEX",
+    "PULSES",
+    "REFERENCE_INDEX",
+    "STATE_INDEX",
+    "Command",
+    "PhasePulses",
+    "Reference",
+    "State",
+    "new_record",
+]
 
 #: ``new_record(State, (k, t, ...))``: a record from the tuple of all its fields, in order, without
 #: the generated keyword-argument constructor (half the cost; for the per-step hot paths, whose
@@ -45,6 +59,18 @@ class Reference(NamedTuple):
     speed_ref: float  #: ω_m*, rad/s
 
 
+class PhasePulses(NamedTuple):
+    """One period's switching command: phase x is high on [delay_x, delay_x + duty_x), fractions
+    of Ts (SPEC §2.1). The command format shared by every control law."""
+
+    delay_a: float
+    delay_b: float
+    delay_c: float
+    duty_a: float
+    duty_b: float
+    duty_c: float
+
+
 class Command(NamedTuple):
     """Controller output for period k: per-phase pulses plus the decision's diagnostics."""
 
@@ -56,7 +82,7 @@ class Command(NamedTuple):
     duty_a: float  #: phase a is high for duty_a·Ts
     duty_b: float
     duty_c: float
-    strategy: float  #: index of the strategy in the machine's registry order
+    strategy: float  #: index of the strategy in its controller family's registry order
     vector: float  #: chosen voltage vector 0..6 (0 = zero vector, realised as 000 or 111)
     duty: float  #: fraction of Ts the chosen vector is applied (1 for plain FCS)
     t_u: float  #: raw deadbeat time before clamping, s (NaN where no deadbeat time is computed)
@@ -65,3 +91,16 @@ class Command(NamedTuple):
     flux_est: float  #: controller's stator-flux magnitude estimate at k, Wb
     flux_angle: float  #: angle of the controller's stator-flux estimate in αβ at k, rad, [0, 2π)
     compute_ns: float  #: wall time of the control law alone, ns (not deterministic)
+
+
+#: index of each field in a row of the record: ``row[STATE_INDEX.torque]`` (a record of the field
+#: positions; typed Any because its values are ints where the record's are floats)
+STATE_INDEX: Any = State(*range(len(State._fields)))
+REFERENCE_INDEX: Any = Reference(*range(len(Reference._fields)))
+COMMAND_INDEX: Any = Command(*range(len(Command._fields)))
+#: the command's pulses, a :class:`PhasePulses`: ``row[PULSES]``
+PULSES: slice = slice(COMMAND_INDEX.delay_a, COMMAND_INDEX.duty_c + 1)
+#: the fields a controller reports about its decision, between ``strategy`` and ``compute_ns``
+COMMAND_DIAGNOSTICS: tuple[str, ...] = Command._fields[
+    COMMAND_INDEX.strategy + 1 : COMMAND_INDEX.compute_ns
+]

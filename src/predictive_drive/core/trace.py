@@ -15,8 +15,12 @@ from .signals import Command, Reference, State
 
 __all__ = ["RECORDS", "Trace", "TraceBuilder"]
 
-#: record name → field tuple type
-RECORDS = {"state": State, "reference": Reference, "command": Command}
+#: record name → its fields, in wire order
+RECORDS: dict[str, tuple[str, ...]] = {
+    "state": State._fields,
+    "reference": Reference._fields,
+    "command": Command._fields,
+}
 
 
 @dataclass
@@ -30,7 +34,9 @@ class Trace:
     strategy_names: tuple[str, ...] = ()
 
     def col(self, record: str, name: str) -> np.ndarray:
-        return getattr(self, record)[:, RECORDS[record]._fields.index(name)]
+        """The column of field ``name`` of ``record`` (state, reference or command)."""
+        rows: np.ndarray = getattr(self, record)
+        return rows[:, RECORDS[record].index(name)]
 
     @property
     def steps(self) -> int:
@@ -46,7 +52,7 @@ class TraceBuilder:
         self.strategy_names = strategy_names
         self.buffers = {name: bytearray() for name in RECORDS}
         self._packers = {
-            name: struct.Struct(f"<{len(cls._fields)}d") for name, cls in RECORDS.items()
+            name: struct.Struct(f"<{len(fields)}d") for name, fields in RECORDS.items()
         }
 
     def packer(self, record: str) -> tuple[Callable[[bytes], None], Callable[..., bytes]]:
@@ -60,8 +66,8 @@ class TraceBuilder:
 
     def build(self) -> Trace:
         arrays = {}
-        for name, cls in RECORDS.items():
-            width = len(cls._fields)
+        for name, fields in RECORDS.items():
+            width = len(fields)
             # a copy: the builder's buffers stay growable and the trace owns writable arrays
             arr = np.frombuffer(self.buffers[name], dtype="<f8").reshape(-1, width).copy()
             if arr.shape[0] and not np.array_equal(arr[:, 0], np.arange(arr.shape[0])):

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import sys
 
-from .common import DriveNode, LocalBus, spin_main
-from .nodes import NODE_CLASSES
+from .metrics_logger_node import MetricsLoggerNode
+from .node_base import DriveNode, spin_main
+from .plant_node import PlantNode
+from .speed_pi_node import SpeedPINode
+from .torque_controller_node import TorqueControllerNode
+from .transport import LocalBus
 
 __all__ = ["main"]
 
@@ -13,8 +17,12 @@ __all__ = ["main"]
 def main(args: list[str] | None = None) -> int:
     def make(bus: LocalBus | None) -> list[DriveNode]:
         # logger first so it is listening before the plant looks for its peers
-        names = ("metrics_logger", "torque_controller", "speed_pi", "plant")
-        return [NODE_CLASSES[name](bus=bus) for name in names]
+        return [
+            MetricsLoggerNode(bus=bus),
+            TorqueControllerNode(bus=bus),
+            SpeedPINode(bus=bus),
+            PlantNode(bus=bus),
+        ]
 
     return spin_main(make, args=sys.argv if args is None else args, bus=LocalBus())
 

@@ -1,13 +1,131 @@
-"""`ros2 run predictive_drive metrics_logger_node --ros-args --params-file config/<scenario>.yaml`."""
+"""The metrics logger node (``ros2 run predictive_drive metrics_logger_node --ros-args
+--params-file config/<scenario>.yaml``): records every topic of the run to a bag, publishes
+running metrics on /diagnostics, closes the bag cleanly however the run ends."""
 
 from __future__ import annotations
 
+import struct
 import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
-from .common import run_main
-from .nodes import MetricsLoggerNode
+from ..bag import BagWriter
+from ..config import load_scenario
+from ..core.control import strategy_names
+from ..core.fields import choice
+from ..interface import TOPICS
+from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
+from .node_base import WatchedNode, run_main
 
-__all__ = ["main"]
+__all__ = ["MetricsLoggerNode", "main"]
+
+
+@dataclass(frozen=True)
+class RecordingParams:
+    """Where and what the logger records, besides its scenario section."""
+
+    bag: str = choice(
+        "bag directory to write (default bags/<scenario>_<strategy>_<time>)", default=""
+    )
+    strategy: str = choice(
+        "the controller's starting strategy, for the bag's metadata (default: the scenario's)",
+        default="",
+    )
+    scenario_file: str = choice(
+        "scenario file to store in the bag (default config/<scenario>.yaml)", default=""
+    )
+
+
+class MetricsLoggerNode(WatchedNode):
+    """Records raw bytes (no decode on the hot path but the running metrics')."""
+
+    section = "metrics_logger"
+
+    def __init__(self, **kw: Any) -> None:
+        super().__init__("metrics_logger", **kw)
+        run, self.params = self.load_params()
+        extra = RecordingParams(**self.declare_fields(RecordingParams))
+        sc = load_scenario(
+            extra.scenario_file or run.scenario,
+            strategy=extra.strategy or None,
+            duration=run.duration,
+        )
+        self.n = run.steps
+        out = Path(extra.bag) if extra.bag else default_bag_dir(sc)
+        self.writer = BagWriter(out, info=bag_info(sc, "ros"))
+        self.pub_diag = self.publisher("diagnostics")
+        self.rec = RunRecorder(
+            self.writer,
+            ts=run.ts,
+            torque_limit=sc.speed_pi.torque_limit,
+            strategy_names=strategy_names(sc.family),
+            record_tools=False,
+            publish=self._publish_diagnostics,
+        )
+        ticks = self.n // tool_every(run.ts) + 1
+        self._counts = {"state": 0, "reference": 0, "command": 0, "clock": 0, "joint_states": 0}
+        self._need = {
+            "state": self.n + 1,
+            "reference": self.n + 1,
+            "command": self.n,
+            "clock": ticks,
+            "joint_states": ticks,
+        }
+        # tool topics first: the plant starts once it sees this node's /drive/state subscription
+        self.subs = [
+            self.subscription(key, lambda d, key=key: self.on_tool(key, d))
+            for key in ("clock", "joint_states")
+        ] + [
+            self.subscription(rec, lambda d, rec=rec: self.on_record(rec, d))
+            for rec in ("state", "reference", "command")
+        ]
+        self.get_logger().info(f"recording to {out}")
+        self._closed = False
+
+    def _publish_diagnostics(self, _key: str, data: bytes) -> None:
+        if self.context.ok():  # not while shutting down: the recording matters more
+            self.pub_diag.publish(data)
+
+    def stalled_message(self) -> str:
+        missing = [r for r, c in self._counts.items() if c < self._need[r]]
+        return (
+            f"recording stalled: waiting for {', '.join(TOPICS[m].name for m in missing)} "
+            f"(state {self._counts['state']}/{self._need['state']})"
+        )
+
+    def on_record(self, rec: str, data: bytes) -> None:
+        self.progressed()
+        self.rec.record_raw(rec, data)
+        self._counts[rec] += 1
+        self._maybe_done()
+
+    def _maybe_done(self) -> None:
+        if self._counts == self._need:
+            self.close()
+            self.finished = True
+
+    def on_tool(self, key: str, data: bytes) -> None:
+        sec, nsec = struct.unpack_from("<iI", data, 4)  # header.stamp / clock, after the CDR header
+        self.writer.write(key, sec * 1_000_000_000 + nsec, data)
+        self._counts[key] += 1
+        self._maybe_done()
+
+    def fail(self, message: str) -> None:
+        super().fail(message)
+        self._publish_diagnostics("diagnostics", self.rec.error(message))
+        self.close()
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            try:
+                self.rec.finish()
+            finally:
+                self.writer.close()
+            self.get_logger().info(
+                f"bag closed: {self.writer.directory} ({self.writer.message_count} messages)"
+            )
 
 
 def main(args: list[str] | None = None) -> int:

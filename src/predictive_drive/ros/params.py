@@ -11,6 +11,8 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from ..errors import GraphError
+from ..interface import node_name
+from .transport import executor
 
 __all__ = ["param"]
 
@@ -24,14 +26,11 @@ def _value(text: str) -> Any:
 def param(*, node: str, name: str, value: str | None = None, timeout: float = 10.0) -> Any:
     """Get (value None) or set a parameter on a running node; returns the value, or raises
     GraphError with the node's reason when a set is rejected."""
-    if not node.startswith("/"):
-        node = f"/drive/{node}"
+    node = node_name(node)
     ctx = Context()
     rclpy.init(context=ctx, domain_id=int(os.environ.get("ROS_DOMAIN_ID", "0")))
     me = rclpy.create_node("param_cli", context=ctx)
     try:
-        from .common import executor
-
         ex = executor(ctx)
         ex.add_node(me)
         client = AsyncParameterClient(me, node)

@@ -1,13 +1,108 @@
-"""`ros2 run predictive_drive torque_controller_node --ros-args --params-file config/<scenario>.yaml`."""
+"""The torque controller node (``ros2 run predictive_drive torque_controller_node --ros-args
+--params-file config/<scenario>.yaml``): state k + reference k → command k, with the control law
+of its ``family``; ``strategy`` switches at run time through the standard parameter services."""
 
 from __future__ import annotations
 
 import sys
+from typing import Any
 
-from .common import run_main
-from .nodes import TorqueControllerNode
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
+from rclpy.parameter import Parameter
 
-__all__ = ["main"]
+from ..config import FAMILY_KEY, family_of, section_class
+from ..core.control import CONTROLLERS, make_controller, strategy_names
+from ..core.fields import Quantity
+from ..core.scenario import RunParams
+from ..core.signals import Reference, State
+from ..interface import CODECS, TOPICS, node_name
+from .node_base import WatchedNode, describe, run_main
+
+__all__ = ["TorqueControllerNode", "main"]
+
+_STATE, _REF, _CMD = CODECS["state"], CODECS["reference"], CODECS["command"]
+
+
+class TorqueControllerNode(WatchedNode):
+    """The inner controller. A ``strategy`` request is validated in the on-set callback (an
+    unknown name is refused with the valid ones; the running strategy stays) and applied in the
+    post-set callback, so it takes effect at the next step boundary."""
+
+    section = "torque_controller"
+    writable = ("strategy",)
+
+    def __init__(self, **kw: Any) -> None:
+        super().__init__("torque_controller", **kw)
+        run, params = self.load_params()
+        self.n = run.steps
+        self.ctrl = make_controller(self.family, params, ts=run.ts)
+        self.pub_cmd = self.publisher("command")
+        self._states: dict[int, State] = {}
+        self._refs: dict[int, Reference] = {}
+        self._k = 0
+        self.sub_state = self.subscription("state", self.on_state)
+        self.sub_ref = self.subscription("reference", self.on_reference)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
+
+    def section_class(self, run: RunParams) -> tuple[type, dict[str, type]]:
+        q = Quantity("controller family (picks the settings below)", choices=tuple(CONTROLLERS))
+        value = self.declare_parameter(FAMILY_KEY, None, describe(q, str, read_only=True)).value
+        params = {} if value is None else {FAMILY_KEY: value}
+        self.family = family_of(params, self._where())
+        return section_class(self.section, run.machine, self.family)
+
+    def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Validate only: every requested strategy must be one of the family's."""
+        names = strategy_names(self.family)
+        for p in params:
+            if p.name == "strategy" and p.value not in names:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f"unknown strategy {p.value!r} for controller family "
+                    f"{self.family!r}; valid: {', '.join(names)} (running strategy stays "
+                    f"{self.ctrl.strategy.name})",
+                )
+        return SetParametersResult(successful=True)
+
+    def on_parameters_set(self, params: list[Parameter]) -> None:
+        """Apply an accepted switch: the next command is made by the new strategy."""
+        for p in params:
+            if p.name == "strategy":
+                self.ctrl.set_strategy(p.value)
+                self.get_logger().info(f"strategy → {p.value} from step {self._k}")
+
+    def stalled_message(self) -> str:
+        if self._k in self._states:
+            return f"no {TOPICS['reference'].name} for step {self._k} from {node_name('speed_pi')}"
+        return f"no {TOPICS['state'].name} for step {self._k} from {node_name('plant')}"
+
+    def on_state(self, data: bytes) -> None:
+        s = State(*_STATE.decode(data))
+        self._states[int(s.k)] = s
+        self._try()
+
+    def on_reference(self, data: bytes) -> None:
+        r = Reference(*_REF.decode(data))
+        self._refs[int(r.k)] = r
+        self._try()
+
+    def _try(self) -> None:
+        k = self._k
+        if k in self._states and k in self._refs:
+            self.progressed()
+            state = self._states.pop(k)
+            ref = self._refs.pop(k)
+            if k >= self.n:
+                self.finished = True
+                return
+            if k == 0:
+                self.wait_matched(self.pub_cmd, 2, "plant, metrics_logger")
+            self.pub_cmd.publish(_CMD.encode(self.ctrl.step(state, ref)))
+            self._k = k + 1
+            if self._k == self.n:
+                self.pub_cmd.wait_for_all_acked(Duration(seconds=self.peer_timeout))
 
 
 def main(args: list[str] | None = None) -> int:

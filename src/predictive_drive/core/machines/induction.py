@@ -1,46 +1,33 @@
-"""Machine models: parameters with units and their continuous-time dynamics.
+"""Induction motor: parameters with units and the continuous-time dynamics (paper 000 eq 1-3,
+SPEC §2.2).
 
-Every model has the dynamics signature ``f(t, x, u, c)`` (python-control style): ``x`` the state
-tuple, ``u = (u_s, t_load)`` with u_s the stator voltage space vector in αβ (V, complex) and t_load the
-load torque (N·m), ``c`` precomputed coefficients of the parameters.
+The dynamics signature is ``f(t, x, u, c)`` (python-control style): ``x`` the state tuple (indices
+in :data:`IM_STATE`), ``u = (u_s, t_load)`` with u_s the stator voltage space vector in αβ (V,
+complex) and t_load the load torque (N·m), ``c`` the precomputed :class:`InductionCoefficients`.
 """
 
 from __future__ import annotations
 
 import cmath
-import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import NamedTuple
 
-from ..errors import ConfigError
+from ...errors import ConfigError
+from ..fields import check_fields, quantity
 
 __all__ = [
     "IM_STATE",
-    "PMSM",
-    "PMSM_STATE",
     "InductionCoefficients",
     "InductionMotor",
-    "PMSMCoefficients",
     "induction_dynamics",
     "induction_exact",
+    "induction_rk4",
     "induction_torque",
-    "pmsm_dynamics",
-    "pmsm_rk4",
-    "pmsm_torque",
 ]
 
 
 IMState = tuple[complex, complex, float, float]  #: i_s, ψ_s (αβ), ω_m, θ_m
 Input = tuple[complex, float]  #: u_s (αβ, V), T_L (N·m)
-
-
-def _positive(obj: object, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ConfigError(
-                f"{type(obj).__name__}.{name} must be a positive number, got {value!r}"
-            )
 
 
 @dataclass(frozen=True)
@@ -63,21 +50,17 @@ class InductionMotor:
     Defaults are none: the scenario file gives every value (paper 000 Table 1 for ``im_paper``).
     """
 
-    r_s: float
-    r_r: float
-    l_s: float
-    l_r: float
-    l_m: float
-    p: int
-    j: float
-    b: float = 0.0
+    r_s: float = quantity("stator resistance", "Ω", gt=0)
+    r_r: float = quantity("rotor resistance (referred to the stator)", "Ω", gt=0)
+    l_s: float = quantity("stator inductance", "H", gt=0)
+    l_r: float = quantity("rotor inductance", "H", gt=0)
+    l_m: float = quantity("magnetising inductance", "H", gt=0)
+    p: int = quantity("pole pairs", ge=1, integer=True)
+    j: float = quantity("rotor + load inertia", "kg·m²", gt=0)
+    b: float = quantity("viscous friction", "N·m·s", ge=0, default=0.0)
 
     def __post_init__(self) -> None:
-        _positive(self, "r_s", "r_r", "l_s", "l_r", "l_m", "p", "j")
-        if not isinstance(self.p, int):
-            raise ConfigError(f"InductionMotor.p must be a positive integer, got {self.p!r}")
-        if self.b < 0:
-            raise ConfigError(f"InductionMotor.b must be >= 0, got {self.b!r}")
+        check_fields(self)
         if self.l_m * self.l_m >= self.l_s * self.l_r:
             raise ConfigError(
                 f"InductionMotor: l_m² must be < l_s·l_r (σ > 0), got l_m={self.l_m}, "
@@ -88,10 +71,6 @@ class InductionMotor:
     def sigma(self) -> float:
         """Leakage factor σ = 1 - L_m²/(L_s L_r)."""
         return 1.0 - self.l_m * self.l_m / (self.l_s * self.l_r)
-
-    @classmethod
-    def field_names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
 
 
 class InductionCoefficients(NamedTuple):
@@ -249,159 +228,3 @@ def induction_exact(
         th += half * (w + w1)
         w, te = w1, te1
     return i, psi, w, th
-
-
-@dataclass(frozen=True)
-class PMSM:
-    """Permanent-magnet synchronous motor in the rotor dq frame (SPEC §2.3; papers 001, 002).
-
-    Surface-mounted when l_d == l_q, interior (salient) when l_d < l_q.
-
-    ===============  ========  =====================================================
-    field            unit      meaning
-    ===============  ========  =====================================================
-    r_s              Ω         stator resistance
-    l_d              H         d-axis inductance
-    l_q              H         q-axis inductance
-    psi_f            Wb        permanent-magnet flux linkage
-    p                —         pole pairs (θ_e = p·θ_m)
-    j                kg·m²     rotor + load inertia
-    rated_torque     N·m       nameplate torque (strategy thresholds are shares of it)
-    rated_speed_rpm  r/min     nameplate speed (documentation and speed bands)
-    b                N·m·s     viscous friction
-    ===============  ========  =====================================================
-
-    Defaults are none: the scenario file gives every value (paper 001 §3 and §6 for
-    ``spmsm_analysis`` and ``ipmsm_validation``).
-    """
-
-    r_s: float
-    l_d: float
-    l_q: float
-    psi_f: float
-    p: int
-    j: float
-    rated_torque: float
-    rated_speed_rpm: float
-    b: float = 0.0
-
-    def __post_init__(self) -> None:
-        _positive(self, "r_s", "l_d", "l_q", "psi_f", "p", "j", "rated_torque", "rated_speed_rpm")
-        if not isinstance(self.p, int):
-            raise ConfigError(f"PMSM.p must be a positive integer, got {self.p!r}")
-        if self.b < 0:
-            raise ConfigError(f"PMSM.b must be >= 0, got {self.b!r}")
-
-    @property
-    def surface(self) -> bool:
-        return self.l_d == self.l_q
-
-
-class PMSMCoefficients(NamedTuple):
-    """Constants of the PMSM state equations, computed once per parameter set."""
-
-    r_s: float
-    inv_l_d: float  #: 1/L_d, 1/H
-    inv_l_q: float  #: 1/L_q, 1/H
-    l_d: float
-    l_q: float
-    psi_f: float
-    p: int
-    torque_k: float  #: 1.5 p
-    inv_j: float
-    b: float
-
-    @classmethod
-    def of(cls, m: PMSM) -> PMSMCoefficients:
-        return cls(
-            r_s=m.r_s,
-            inv_l_d=1.0 / m.l_d,
-            inv_l_q=1.0 / m.l_q,
-            l_d=m.l_d,
-            l_q=m.l_q,
-            psi_f=m.psi_f,
-            p=m.p,
-            torque_k=1.5 * m.p,
-            inv_j=1.0 / m.j,
-            b=m.b,
-        )
-
-
-class PMSMStateIndex(NamedTuple):
-    i_dq: int = 0  #: stator current in the rotor frame, A (complex: i_d + j·i_q)
-    omega_m: int = 1  #: mechanical speed, rad/s
-    theta_m: int = 2  #: shaft angle, rad (θ_e = p·θ_m)
-
-
-PMSM_STATE = PMSMStateIndex()
-
-
-def pmsm_torque(i_dq: complex, c: PMSMCoefficients) -> float:
-    """T_e = (3/2) p [ψ_f i_q + (L_d - L_q) i_d i_q], N·m (SPEC §2.3)."""
-    return c.torque_k * i_dq.imag * (c.psi_f + (c.l_d - c.l_q) * i_dq.real)
-
-
-def pmsm_dynamics(
-    t: float,
-    x: tuple[complex, float, float],
-    u: tuple[complex, float],
-    c: PMSMCoefficients,
-) -> tuple[complex, float, float]:
-    """dx/dt of the PMSM plus mechanics (SPEC §2.3, §2.4). u_s is in αβ; it is turned into the rotor
-    frame with θ_e = p·θ_m: u_d + j·u_q = u_s·e^{-jθ_e}."""
-    i, w, th = x
-    u_s, t_load = u
-    the = c.p * th
-    u_dq = u_s * complex(math.cos(the), -math.sin(the))
-    we = c.p * w
-    i_d, i_q = i.real, i.imag
-    di_d = (u_dq.real - c.r_s * i_d + we * c.l_q * i_q) * c.inv_l_d
-    di_q = (u_dq.imag - c.r_s * i_q - we * (c.l_d * i_d + c.psi_f)) * c.inv_l_q
-    te = c.torque_k * i_q * (c.psi_f + (c.l_d - c.l_q) * i_d)
-    dw = (te - t_load - c.b * w) * c.inv_j
-    return complex(di_d, di_q), dw, w
-
-
-def pmsm_rk4(
-    t: float,
-    x: tuple[complex, float, float],
-    u: tuple[complex, float],
-    c: PMSMCoefficients,
-    h: float,
-    n: int,
-) -> tuple[complex, float, float]:
-    """RK4 of :func:`pmsm_dynamics` over [t, t+h] in ``n`` sub-steps, fused for speed (a test holds
-    it to ``plant.rk4(pmsm_dynamics, ...)``)."""
-    i, w, th = x
-    u_s, tl = u
-    rs, ild, ilq, ld, lq, pf, p, tk, ij, fb = c
-    ua, ub = u_s.real, u_s.imag
-    dl = ld - lq
-    cos, sin = math.cos, math.sin
-    dt = h / n
-    half = 0.5 * dt
-    sixth = dt / 6.0
-
-    def f(i_d: float, i_q: float, w: float, th: float) -> tuple[float, float, float]:
-        the = p * th
-        co, si = cos(the), sin(the)
-        we = p * w
-        did = (ua * co + ub * si - rs * i_d + we * lq * i_q) * ild
-        diq = (ub * co - ua * si - rs * i_q - we * (ld * i_d + pf)) * ilq
-        dw = (tk * i_q * (pf + dl * i_d) - tl - fb * w) * ij
-        return did, diq, dw
-
-    i_d, i_q = i.real, i.imag
-    for _ in range(n):
-        a1, b1, c1 = f(i_d, i_q, w, th)
-        w2 = w + half * c1
-        a2, b2, c2 = f(i_d + half * a1, i_q + half * b1, w2, th + half * w)
-        w3 = w + half * c2
-        a3, b3, c3 = f(i_d + half * a2, i_q + half * b2, w3, th + half * w2)
-        w4 = w + dt * c3
-        a4, b4, c4 = f(i_d + dt * a3, i_q + dt * b3, w4, th + dt * w3)
-        i_d += sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        i_q += sixth * (b1 + 2.0 * b2 + 2.0 * b3 + b4)
-        th += sixth * (w + 2.0 * w2 + 2.0 * w3 + w4)
-        w += sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4)
-    return complex(i_d, i_q), w, th

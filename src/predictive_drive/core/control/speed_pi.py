@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import ConfigError
-from .profiles import StepProfile
-from .signals import Reference, State, new_record
+from ..fields import check_fields, quantity
+from ..signals import Reference, State, new_record
+from ..timebase import StepProfile
 
 __all__ = ["SpeedPI", "SpeedPIParams"]
 
@@ -23,22 +23,15 @@ class SpeedPIParams:
     speed_times in s, speed_values_rpm in r/min (converted to rad/s internally).
     """
 
-    kp: float
-    ki: float
-    torque_limit: float
-    flux_ref: float
-    speed_times: tuple[float, ...]
-    speed_values_rpm: tuple[float, ...]
+    kp: float = quantity("proportional gain", "N·m/(rad/s)", ge=0)
+    ki: float = quantity("integral gain (integrator += ki·Ts·e per step)", "N·m/rad", ge=0)
+    torque_limit: float = quantity("T* saturates at ± this", "N·m", gt=0)
+    flux_ref: float = quantity("stator-flux reference ψ*", "Wb", gt=0)
+    speed_times: tuple[float, ...] = quantity("times of the speed-reference steps", "s", ge=0)
+    speed_values_rpm: tuple[float, ...] = quantity("speed reference from each time on", "r/min")
 
     def __post_init__(self) -> None:
-        for name in ("kp", "ki"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"speed_pi.{name} must be a number >= 0, got {v!r}")
-        for name in ("torque_limit", "flux_ref"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ConfigError(f"speed_pi.{name} must be a positive number, got {v!r}")
+        check_fields(self)
         self.speed_profile()  # validates
 
     def speed_profile(self) -> StepProfile:

@@ -1,9 +1,10 @@
-"""Inner predictive torque control: strategies, their registry and the controller (SPEC §3.2).
+"""Paper 000: model predictive torque control of the induction motor — MPTC, MPTC-DB, DB-MPTC
+(SPEC §3.2), the controller family ``mptc_im``.
 
-The controller owns what every strategy shares — the stator-flux estimate (SPEC §2.5), the soft start,
-the zero-vector choice and the command format — and asks its strategy for (vector, duty) each step.
-Strategies are plain objects with ``decide(step, torque_ref, flux_ref) -> Decision``; the registry
-maps machine type → strategy name → class.
+The controller owns what every strategy shares — the stator-flux estimate (SPEC §2.5), the soft
+start, the zero-vector choice and the command format — and asks its strategy for (vector, duty)
+each step. Strategies are plain objects with ``decide(prediction, torque_ref, flux_ref) ->
+Decision``; :data:`IM_STRATEGIES` lists them in registry order.
 """
 
 from __future__ import annotations
@@ -12,30 +13,21 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from ..errors import ConfigError
-from .decision import Decision, Machine, PredictiveController, Strategy, instantiate
-from .motors import InductionCoefficients, InductionMotor
-from .pmsm_control import PMSM_STRATEGIES, PMSMController, PMSMControllerParams, PMSMPrediction
-from .signals import Reference, State, new_record
+from ..fields import check_fields, choice, quantity
+from ..machines import Machine
+from ..machines.induction import InductionCoefficients, InductionMotor
+from ..signals import Reference, State, new_record
+from .base import Decision, VectorController
 
 __all__ = [
     "A0_FORMS",
     "DBMPTC",
+    "IM_STRATEGIES",
     "MPTC",
     "MPTCDB",
-    "PMSMController",
-    "PMSMControllerParams",
-    "PMSMPrediction",
-    "STRATEGIES",
-    "Decision",
     "IMPrediction",
     "InductionController",
     "InductionControllerParams",
-    "Machine",
-    "PredictiveController",
-    "Strategy",
-    "make_strategy",
-    "strategy_names",
 ]
 
 INF = math.inf
@@ -191,28 +183,8 @@ def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> 
     return best_n
 
 
+#: strategy name → class; registry order is the ``strategy`` index in commands
 IM_STRATEGIES: Mapping[str, type] = {"mptc": MPTC, "mptc_db": MPTCDB, "db_mptc": DBMPTC}
-
-#: machine → strategy name → class; registry order is the ``strategy`` index in commands
-STRATEGIES: Mapping[Machine, Mapping[str, type]] = {
-    Machine.INDUCTION: IM_STRATEGIES,
-    Machine.PMSM: PMSM_STRATEGIES,
-}
-
-
-def strategy_names(machine: Machine | str) -> tuple[str, ...]:
-    return tuple(STRATEGIES[Machine(machine)])
-
-
-def make_strategy(machine: Machine | str, name: str) -> Strategy:
-    """Instantiate strategy ``name`` for ``machine``; ValueError lists the valid names."""
-    try:
-        m = Machine(machine)
-    except ValueError:
-        raise ValueError(
-            f"unknown machine {machine!r}; valid: {', '.join(x.value for x in Machine)}"
-        ) from None
-    return instantiate(m, STRATEGIES[m], name)
 
 
 @dataclass(frozen=True)
@@ -225,44 +197,41 @@ class InductionControllerParams:
     """
 
     motor: InductionMotor
-    strategy: str
-    lambda_psi: float = 17.5
-    soft_start_flux: float = 0.65
-    soft_start_current: float = 6.5
-    a0_form: str = "derived"
+    strategy: str = choice("control law; switchable at run time", tuple(IM_STRATEGIES))
+    lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
+    soft_start_flux: float = quantity(
+        "soft start until the flux estimate first reaches this", "Wb", ge=0, default=0.65
+    )
+    soft_start_current: float = quantity(
+        "soft start: zero vector above this current", "A", ge=0, default=6.5
+    )
+    a0_form: str = choice(
+        "a_0 of the torque derivative: derived, or paper 000 eq 10 as printed (sign error)",
+        A0_FORMS,
+        default="derived",
+    )
 
     def __post_init__(self) -> None:
-        if self.strategy not in IM_STRATEGIES:
-            raise ConfigError(
-                f"torque_controller.strategy: unknown strategy {self.strategy!r} for machine "
-                f"'induction'; valid: {', '.join(IM_STRATEGIES)}"
-            )
-        if self.a0_form not in A0_FORMS:
-            raise ConfigError(
-                f"torque_controller.a0_form: {self.a0_form!r} is not one of {', '.join(A0_FORMS)}"
-            )
-        for name in ("lambda_psi", "soft_start_flux", "soft_start_current"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"torque_controller.{name} must be a number >= 0, got {v!r}")
+        check_fields(self)
 
 
-class InductionController(PredictiveController):
+class InductionController(VectorController):
     """Predictive torque controller for the IM: ``step(state k, reference k) -> command k``.
 
     Estimates the stator flux by integrating ψ̂(k+1) = ψ̂(k) + Ts(u(k) - R_s i(k)) with the voltage
     it actually applied (SPEC §2.5); soft start at start-up only (SPEC §3.2).
     """
 
+    family = "mptc_im"
     machine = Machine.INDUCTION
+    params_type = InductionControllerParams
     strategies = IM_STRATEGIES
 
     def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
-        self.params = params
         c = InductionCoefficients.of(params.motor)
         self._coef = c
         self._pred = IMPrediction(c, ts, params.lambda_psi, params.a0_form == "paper_printed")
-        super().__init__(params.strategy, ts=ts)
+        super().__init__(params, ts=ts)
         self.psi_hat = 0j
         self.soft_start = params.soft_start_flux > 0
 
@@ -282,7 +251,8 @@ class InductionController(PredictiveController):
         self.est_torque = m.te
         if self.soft_start:
             return Decision(0 if abs(i) > self.params.soft_start_current else 1, 1.0, NAN, 0)
-        return self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
+        d: Decision = self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
+        return d
 
     def _applied(self, d: Decision, state: State) -> None:
         u_avg = d.fraction * self._volts[d.vector]

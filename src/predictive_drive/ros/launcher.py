@@ -21,40 +21,13 @@ from typing import IO, Any
 
 from ..core.scenario import Scenario
 from ..errors import GraphError
+from ..interface import LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
+from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
 
-#: set by the launcher to its PID for its children: a node whose parent is no longer that process
-#: (the launcher was killed outright, e.g. SIGKILL, and could not stop them) ends the run itself
-LAUNCHER_ENV = "PREDICTIVE_DRIVE_LAUNCHER_PID"
-#: name of the launcher's own node (in /drive) that follows /clock and switches strategies
-LAUNCHER_NODE = "launcher"
-#: set by the launcher for each child: the CPUs (comma-separated ids) the node process keeps to,
-#: applied before rclpy starts its threads (what ``taskset -c`` does for ``ros2 run``)
-CPUS_ENV = "PREDICTIVE_DRIVE_CPUS"
-#: ``--affinity`` values: ``paired`` keeps each lock-step pair on one CPU, ``none`` leaves the
-#: placement to the kernel
-AFFINITIES = ("paired", "none")
-#: set by the launcher for each child: the Linux scheduling policy of every thread of the node
-SCHED_ENV = "PREDICTIVE_DRIVE_SCHED"
-#: ``--sched`` values → policy. ``batch`` (SCHED_BATCH, same priority as normal): a thread that
-#: wakes does not preempt the one running on its CPU, so a node finishes publishing to all its
-#: readers before the reader it woke on its CPU runs; ``other``: the kernel's default
-SCHED_POLICIES = {"batch": os.SCHED_BATCH, "other": os.SCHED_OTHER}
-#: Fast DDS settings for the graph (see the file's comment); the 2.x and 3.x variable names
-FASTDDS_PROFILES = Path(__file__).with_name("fastdds_profiles.xml")
-FASTDDS_PROFILES_ENV = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+__all__ = ["isolated_domain", "run_graph", "stop_processes"]
 
-__all__ = [
-    "AFFINITIES",
-    "NODES",
-    "SCHED_POLICIES",
-    "cpu_plan",
-    "isolated_domain",
-    "ros_env",
-    "run_graph",
-    "stop_processes",
-]
-
-NODES = ("metrics_logger", "torque_controller", "speed_pi", "plant")
+#: start order: the logger first, so it listens before the plant looks for its peers
+START_ORDER = ("metrics_logger", "torque_controller", "speed_pi", "plant")
 DOMAIN_RANGE = range(1, 101)  # 101..232 left to tests and users
 LOCK_DIR = Path(tempfile.gettempdir()) / "predictive_drive_domains"
 
@@ -79,40 +52,6 @@ def isolated_domain() -> Iterator[int]:
             f.close()
         return
     raise GraphError("no free ROS domain id: 100 predictive_drive runs at once?")
-
-
-def ros_env(domain: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["PYTHONUNBUFFERED"] = "1"
-    env[LAUNCHER_ENV] = str(os.getpid())  # nodes end themselves if this process dies
-    if not any(env.get(k) for k in FASTDDS_PROFILES_ENV):  # a user's own profiles win
-        env.update(dict.fromkeys(FASTDDS_PROFILES_ENV, str(FASTDDS_PROFILES)))
-    # the PyPI wheels do not set it; the ament index lives under the venv's share/
-    prefixes = [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    if sys.prefix not in prefixes:
-        prefixes.insert(0, sys.prefix)
-    env["AMENT_PREFIX_PATH"] = os.pathsep.join(prefixes)
-    return env
-
-
-def cpu_plan(affinity: str, cpus: Sequence[int] | None = None) -> dict[str, str]:
-    """Node → CPU list for the separate-process graph (empty: no pinning).
-
-    ``paired``: plant and torque_controller share one CPU, speed_pi and metrics_logger another.
-    Plant and controller take turns on the critical path (state k → command k → state k+1), so on
-    one CPU each wakes the other without a cross-CPU wake-up; the PI and the logger work beside
-    them. On this project's 2-vCPU machine that is ~1.3-1.7x the steps/s of free placement
-    (``predictive-drive bench`` prints both). Fewer than two usable CPUs: no pinning.
-    """
-    if affinity not in AFFINITIES:
-        raise GraphError(f"--affinity: {affinity!r} is not one of {', '.join(AFFINITIES)}")
-    usable = sorted(os.sched_getaffinity(0) if cpus is None else cpus)
-    if affinity == "none" or len(usable) < 2:
-        return {}
-    a, b = str(usable[0]), str(usable[1])
-    return {"plant": a, "torque_controller": a, "speed_pi": b, "metrics_logger": b}
 
 
 def stop_processes(procs: dict[str, subprocess.Popen[bytes]], *, grace: float = 5.0) -> None:
@@ -162,14 +101,14 @@ def run_graph(
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
     # node-specific entries beat wildcard ones and later files beat earlier ones, so the command
     # line's overrides go into a second parameter file with one section per node
-    overrides = {f"/drive/{n}": {"ros__parameters": dict(shared)} for n in NODES}
-    overrides["/drive/torque_controller"]["ros__parameters"]["strategy"] = sc.controller.strategy
-    overrides["/drive/metrics_logger"]["ros__parameters"].update(
-        strategy=sc.controller.strategy, bag=str(bag.resolve()), scenario_file=source
+    overrides = {node_name(n): {"ros__parameters": dict(shared)} for n in NODES}
+    overrides[node_name("torque_controller")]["ros__parameters"]["strategy"] = sc.strategy
+    overrides[node_name("metrics_logger")]["ros__parameters"].update(
+        strategy=sc.strategy, bag=str(bag.resolve()), scenario_file=source
     )
     # the launcher follows /clock for progress and switches: step 0 waits for it too
     watching = bool(switches) or progress is not None
-    overrides["/drive/plant"]["ros__parameters"]["await_launcher"] = watching
+    overrides[node_name("plant")]["ros__parameters"]["await_launcher"] = watching
     with isolated_domain() as domain, tempfile.TemporaryDirectory() as logs:
         import yaml
 
@@ -187,7 +126,7 @@ def run_graph(
         commands = (
             {"composed": ["predictive_drive.ros.composed", *args]}
             if composed
-            else {n: [f"predictive_drive.ros.{n}_node", *args] for n in NODES}
+            else {n: [f"predictive_drive.ros.{n}_node", *args] for n in START_ORDER}
         )
         try:
             for name, cmd in commands.items():
@@ -260,11 +199,11 @@ class _ClockWatcher:
         from rclpy.context import Context
         from rclpy.parameter_client import AsyncParameterClient
 
-        from .common import executor
+        from .transport import executor
 
         self.ctx = Context()
         rclpy.init(context=self.ctx, domain_id=domain)
-        self.node = rclpy.create_node(LAUNCHER_NODE, namespace="/drive", context=self.ctx)
+        self.node = rclpy.create_node(LAUNCHER_NODE, namespace=NAMESPACE, context=self.ctx)
         self.ex = executor(self.ctx)
         self.ex.add_node(self.node)
         self.ts = sc.ts
@@ -272,14 +211,13 @@ class _ClockWatcher:
         self.pending = sorted(switches)
         self.switch_errors: list[str] = []
         self._futures: list[tuple[str, Any]] = []
-        self.client = AsyncParameterClient(self.node, "/drive/torque_controller")
+        self.client = AsyncParameterClient(self.node, node_name("torque_controller"))
         self._clock_sub: Any = None  # see spin()
 
     def _follow_clock(self) -> None:
         from rosgraph_msgs.msg import Clock
 
-        from ..interface import TOPICS
-        from .common import qos
+        from .transport import qos
 
         self._clock_sub = self.node.create_subscription(
             Clock, TOPICS["clock"].name, self.on_clock, qos(TOPICS["clock"].qos)
@@ -315,7 +253,7 @@ class _ClockWatcher:
         return (
             self.switch_errors
             + [
-                f"{what}: no answer from /drive/torque_controller before the run ended"
+                f"{what}: no answer from {node_name('torque_controller')} before the run ended"
                 for what, _ in self._futures
             ]
             + [f"switch at {at} s to {name}: never sent" for at, name in self.pending]

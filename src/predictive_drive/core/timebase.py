@@ -1,4 +1,8 @@
-"""Piecewise-constant step profiles of simulated time (load torque, speed reference)."""
+"""The run's timebase: simulated time ↔ step index, and step profiles on the step grid.
+
+Step k samples at t = k·Ts. One rounding rule turns a time into a step everywhere (profiles,
+metrics windows, switches, run lengths): :func:`step_index`.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +12,19 @@ from dataclasses import dataclass
 
 from ..errors import ConfigError
 
-__all__ = ["StepProfile"]
+__all__ = ["SampledProfile", "StepProfile", "every_steps", "step_index"]
+
+
+def step_index(t: float, ts: float) -> int:
+    """The first step k whose sample instant k·Ts is at or after ``t`` (s). A time within 1e-9
+    of a step (in steps) counts as on it, so t = k·Ts computed in floating point gives k."""
+    return math.ceil(t / ts - 1e-9)
+
+
+def every_steps(period: float, ts: float) -> int:
+    """Decimation: a periodic event every ``period`` s of simulated time is every this many steps
+    (at least 1)."""
+    return max(1, round(period / ts))
 
 
 @dataclass(frozen=True)
@@ -31,12 +47,10 @@ class StepProfile:
         if not all(math.isfinite(v) for v in (*self.times, *self.values)):
             raise ConfigError("step profile times and values must be finite numbers")
 
-    def step_indices(self, ts: float) -> tuple[int, ...]:
-        """First step index at which each value is in force (robust to t = k·Ts rounding)."""
-        return tuple(math.ceil(t / ts - 1e-9) for t in self.times)
-
     def sampled(self, ts: float) -> SampledProfile:
-        return SampledProfile(self.step_indices(ts), tuple(float(v) for v in self.values))
+        """The profile on the step grid: each value from :func:`step_index` of its time on."""
+        starts = tuple(step_index(t, ts) for t in self.times)
+        return SampledProfile(starts, tuple(float(v) for v in self.values))
 
 
 @dataclass(frozen=True)

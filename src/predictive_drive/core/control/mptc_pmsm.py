@@ -1,5 +1,5 @@
-"""Predictive torque control of the PMSM: conventional MPTC and simplified strategies 1-3 (paper 001,
-SPEC §3.3).
+"""Paper 001: predictive torque control of the PMSM — conventional MPTC and simplified strategies
+1-3 (SPEC §3.3), the controller family ``mptc_pmsm``.
 
 The controller sees the measured currents and rotor angle and forms the stator flux and torque with
 its own L_d, L_q, ψ_f (SPEC §2.5). Each candidate vector is predicted with paper 001 eq 1-3 — the
@@ -7,36 +7,28 @@ stator-flux frame, R_s neglected, the rotor frozen over Ts — and its torque fr
 with the saliency term (for L_d = L_q this is eq 2 exactly). Cost eq 5, normalised; T* is guarded
 by T_floor because it crosses zero at every load reversal. Candidates are evaluated in ascending
 vector order and the first strict minimum wins. The restricted candidate sets of strategies 2 and 3
-are data (``candidate_tables.json``) that ``predictive-drive analyze`` regenerates from a recording.
+are data (:mod:`.candidates`) that ``predictive-drive analyze`` regenerates from a recording.
 """
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from math import asin, cos, sin, sqrt
-from pathlib import Path
-from typing import Any, NamedTuple
 
-from ..errors import ConfigError
-from .decision import Decision, Machine, PredictiveController
-from .motors import PMSM, PMSMCoefficients
-from .signals import Reference, State
+from ..fields import check_fields, choice, quantity
+from ..machines import Machine
+from ..machines.pmsm import PMSM, PMSMCoefficients
+from ..signals import Reference, State
+from .base import Decision, VectorController
+from .candidates import TABLES
 
 __all__ = [
-    "CANDIDATE_TABLES_FILE",
     "PMSM_STRATEGIES",
-    "FLUX_SIGNS",
-    "TORQUE_SIGNS",
-    "CandidateTables",
     "PMSMController",
     "PMSMControllerParams",
     "PMSMPrediction",
-    "class_document",
-    "load_candidate_tables",
-    "sector",
 ]
 
 NAN = math.nan
@@ -45,73 +37,6 @@ TWO_PI = 2.0 * math.pi
 #: angle of V1..V6 in αβ (V1 at 0°, 60° apart); index 0 unused (V0 has no direction)
 VECTOR_ANGLES = (0.0, *(n * math.pi / 3.0 for n in range(6)))
 ACTIVE_VECTORS = (1, 2, 3, 4, 5, 6)
-CANDIDATE_TABLES_FILE = Path(__file__).with_name("candidate_tables.json")
-
-
-def sector(angle: float, count: int) -> int:
-    """0-based sector of an αβ angle (rad) among ``count`` equal sectors starting at 0°:
-    sector 0 is [0°, 360°/count). Paper 001 eq 11-12 number them θ1..θcount. An angle that rounds
-    to 360° is 0°."""
-    return int(angle % TWO_PI / (TWO_PI / count)) % count
-
-
-class CandidateTables(NamedTuple):
-    """Candidate vectors per class. ``six[t][s]``: torque-error sign t (0: ΔT > th, 1: ΔT < -th),
-    6-sector s. ``twelve[t][f][s]``: f the flux-error sign (0: Δψ ≥ 0, 1: Δψ < 0), 12-sector s.
-    Every set is a tuple of vector numbers in ascending order (V0 first)."""
-
-    six: tuple[tuple[tuple[int, ...], ...], ...]
-    twelve: tuple[tuple[tuple[tuple[int, ...], ...], ...], ...]
-    rule: str = ""
-    source: str = ""
-
-
-#: class keys of the table file: torque-error sign (index t), flux-error sign (index f)
-TORQUE_SIGNS = ("T+", "T-")
-FLUX_SIGNS = ("psi+", "psi-")
-
-
-def class_document(six: Any, twelve: Any, cell: Callable[[Any], Any] = list) -> dict[str, Any]:
-    """Per-class data in the table file's shape: ``six[t][s]`` under ``six_sector`` → ``T±``,
-    ``twelve[t][f][s]`` under ``twelve_sector`` → ``T±psi±``; each entry passed through ``cell``.
-    The candidate tables, and the analysis' utilization tables, are written in this shape."""
-    return {
-        "six_sector": {TORQUE_SIGNS[t]: [cell(c) for c in six[t]] for t in range(2)},
-        "twelve_sector": {
-            TORQUE_SIGNS[t] + FLUX_SIGNS[f]: [cell(c) for c in twelve[t][f]]
-            for t in range(2)
-            for f in range(2)
-        },
-    }
-
-
-def load_candidate_tables(path: str | Path = CANDIDATE_TABLES_FILE) -> CandidateTables:
-    """Read candidate tables as written by ``predictive-drive analyze --write-tables``."""
-    path = Path(path)
-
-    def sets(cells: list[Any]) -> tuple[tuple[int, ...], ...]:
-        return tuple(tuple(sorted(int(v) for v in cell)) for cell in cells)
-
-    try:
-        doc = json.loads(path.read_text())
-        six = tuple(sets(doc["six_sector"][t]) for t in TORQUE_SIGNS)
-        twelve = tuple(
-            tuple(sets(doc["twelve_sector"][t + f]) for f in FLUX_SIGNS) for t in TORQUE_SIGNS
-        )
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise ConfigError(f"{path}: not a candidate table file ({e})") from None
-    if any(len(row) != 6 for row in six) or any(len(r) != 12 for t in twelve for r in t):
-        raise ConfigError(f"{path}: need 6 sectors per six_sector row and 12 per twelve_sector row")
-    for cell in [c for row in six for c in row] + [c for t in twelve for r in t for c in r]:
-        if not cell or cell[0] != 0 or any(not 0 <= v <= 6 for v in cell):
-            raise ConfigError(
-                f"{path}: candidate sets must be subsets of V0..V6 holding V0 (strategies 2 and 3 "
-                f"always keep the zero vector), got {list(cell)}"
-            )
-    return CandidateTables(six, twelve, doc.get("rule", ""), doc.get("source", ""))
-
-
-TABLES = load_candidate_tables()
 
 
 def _classes(
@@ -314,38 +239,42 @@ class PMSMControllerParams:
     """
 
     motor: PMSM
-    strategy: str
-    torque_threshold: float = NAN
-    t_floor: float = NAN
+    strategy: str = choice("control law; switchable at run time", tuple(PMSM_STRATEGIES))
+    torque_threshold: float = quantity(
+        "|T* - T̂| at or below which simplified1-3 output the zero vector",
+        "N·m",
+        ge=0,
+        nan_default="5 % of rated torque",
+        default=NAN,
+    )
+    t_floor: float = quantity(
+        "smallest |T*| the torque term of the cost is divided by",
+        "N·m",
+        gt=0,
+        nan_default="1 % of rated torque",
+        default=NAN,
+    )
 
     def __post_init__(self) -> None:
-        if self.strategy not in PMSM_STRATEGIES:
-            raise ConfigError(
-                f"torque_controller.strategy: unknown strategy {self.strategy!r} for machine "
-                f"'pmsm'; valid: {', '.join(PMSM_STRATEGIES)}"
-            )
+        check_fields(self)
         for name, share in (("torque_threshold", 0.05), ("t_floor", 0.01)):
-            v = getattr(self, name)
-            if math.isnan(v):
+            if math.isnan(getattr(self, name)):
                 object.__setattr__(self, name, share * self.motor.rated_torque)
-            elif not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"torque_controller.{name} must be a torque >= 0 N·m, got {v!r}")
-        if self.t_floor <= 0:
-            raise ConfigError(f"torque_controller.t_floor must be > 0 N·m, got {self.t_floor!r}")
 
 
-class PMSMController(PredictiveController):
+class PMSMController(VectorController):
     """Predictive torque controller for the PMSM: ``step(state k, reference k) -> command k``."""
 
+    family = "mptc_pmsm"
     machine = Machine.PMSM
+    params_type = PMSMControllerParams
     strategies = PMSM_STRATEGIES
 
     def __init__(self, params: PMSMControllerParams, *, ts: float) -> None:
-        self.params = params
         self._pred = PMSMPrediction(
             PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor
         )
-        super().__init__(params.strategy, ts=ts)
+        super().__init__(params, ts=ts)
 
     def _observe(self, state: State) -> None:
         m = self._pred
@@ -355,7 +284,8 @@ class PMSMController(PredictiveController):
         self.est_flux_angle = m.theta_psi
 
     def _decide(self, state: State, ref: Reference) -> Decision:
-        return self.strategy.decide(self._pred, ref.torque_ref, ref.flux_ref)
+        d: Decision = self.strategy.decide(self._pred, ref.torque_ref, ref.flux_ref)
+        return d
 
     def decision_inputs(self, states: list[State]) -> list[PMSMPrediction]:
         p = self._pred

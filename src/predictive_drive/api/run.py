@@ -1,0 +1,125 @@
+"""``predictive-drive run``: a scenario on an engine, recorded to a bag, evaluated from the bag."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..bag import BagWriter
+from ..config import load_scenario
+from ..core.control import strategy_names
+from ..core.metrics import Metrics
+from ..core.runner import run_inprocess
+from ..core.scenario import Scenario
+from ..core.timebase import step_index
+from ..errors import ConfigError
+from ..recording import RunRecorder, bag_info, default_bag_dir
+from .report import evaluate
+
+__all__ = ["ENGINES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
+
+ENGINES = ("ros", "composed", "inprocess")
+
+
+@dataclass
+class RunResult:
+    scenario: str
+    strategy: str
+    engine: str
+    steps: int
+    bag: Path
+    wall_s: float
+    metrics: Metrics
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario,
+            "strategy": self.strategy,
+            "engine": self.engine,
+            "steps": self.steps,
+            "bag": str(self.bag),
+            "wall_s": self.wall_s,
+            "metrics": self.metrics.as_dict(),
+        }
+
+
+def switch_steps(sc: Scenario, switches: Sequence[tuple[float, str]]) -> list[tuple[int, str]]:
+    """``--switch T:STRATEGY`` pairs → (step, strategy); ConfigError for an unknown strategy or
+    a time outside the run."""
+    names = strategy_names(sc.family)
+    out = []
+    for t, name in switches:
+        if name not in names:
+            raise ConfigError(f"--switch {t}:{name}: unknown strategy; valid: {', '.join(names)}")
+        if not (0 <= t < sc.run.duration):
+            raise ConfigError(f"--switch {t}:{name}: time must lie in [0, {sc.run.duration}) s")
+        out.append((step_index(t, sc.ts), name))
+    return out
+
+
+def run_inprocess_to_bag(
+    sc: Scenario,
+    out: Path,
+    switches: Sequence[tuple[int, str]] = (),
+    progress: Callable[[int], None] | None = None,
+) -> int:
+    """The in-process engine with recording; returns the number of steps recorded. ``switches``:
+    (step, strategy) pairs, as :func:`switch_steps` makes them."""
+    with BagWriter(out, info=bag_info(sc, "inprocess")) as writer:
+        rec = RunRecorder(
+            writer,
+            ts=sc.ts,
+            torque_limit=sc.speed_pi.torque_limit,
+            strategy_names=strategy_names(sc.family),
+            record_tools=True,
+        )
+        trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
+        rec.finish()
+    return trace.steps
+
+
+def run(
+    scenario: str | Path,
+    *,
+    strategy: str | None = None,
+    duration: float | None = None,
+    engine: str = "ros",
+    out: str | Path | None = None,
+    switches: Sequence[tuple[float, str]] = (),
+    progress: Callable[[int, int], None] | None = None,
+    affinity: str = "paired",
+    sched: str = "batch",
+) -> RunResult:
+    """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
+    ``sched``: CPU placement (``paired`` | ``none``, see
+    :func:`predictive_drive.ros.placement.cpu_plan`) and scheduling policy (``batch`` |
+    ``other``) of the ``ros`` engine's node processes."""
+    if engine not in ENGINES:
+        raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
+    sc = load_scenario(scenario, strategy=strategy, duration=duration)
+    bag = Path(out) if out is not None else default_bag_dir(sc)
+    n = sc.run.steps
+    cb = (lambda k: progress(k, n)) if progress is not None else None
+    # checked for every engine, so a bad --switch fails before anything starts
+    at_steps = switch_steps(sc, switches)
+    t0 = time.perf_counter()
+    if engine == "inprocess":
+        run_inprocess_to_bag(sc, bag, at_steps, cb)
+    else:
+        from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
+
+        run_graph(
+            sc,
+            bag,
+            composed=(engine == "composed"),
+            switches=switches,
+            progress=cb,
+            affinity=affinity,
+            sched=sched,
+        )
+    wall = time.perf_counter() - t0
+    ev = evaluate(bag)
+    return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics)

@@ -1,0 +1,165 @@
+"""What every inner controller shares, whatever its family (SPEC §2.5, §3).
+
+A controller turns state k and reference k into command k: it estimates what it needs from the
+measurements, runs its control law (the strategy in force; the only part timed), and modulates
+the law's output into the per-phase pulses every plant understands, plus the diagnostics the
+command carries (:data:`~predictive_drive.core.signals.COMMAND_DIAGNOSTICS`). A law may hand back
+a voltage vector and its share of Ts (the MPTC families, :class:`VectorController`) or a voltage
+reference turned into three duties (SVPWM); the base does not care which.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from time import perf_counter_ns
+from typing import Any, ClassVar, NamedTuple, Protocol
+
+from ..inverter import active_then_zero, vector_voltages
+from ..machines import Machine
+from ..signals import Command, PhasePulses, Reference, State, new_record
+
+__all__ = ["Controller", "Decision", "Strategy", "VectorController", "instantiate"]
+
+NAN = math.nan
+TWO_PI = 2.0 * math.pi
+
+
+class Strategy(Protocol):
+    """A control law of a family; each family states what its laws are asked (``decide``)."""
+
+    name: str
+
+
+def instantiate(family: str, registry: Mapping[str, type], name: str) -> Any:
+    """Strategy ``name`` from one family's registry; ValueError lists the valid names."""
+    if name not in registry:
+        raise ValueError(
+            f"unknown strategy {name!r} for controller family {family!r}; "
+            f"valid: {', '.join(registry)}"
+        )
+    return registry[name]()
+
+
+class Controller:
+    """``step(state k, reference k) -> command k``; the base of every controller family.
+
+    A family's class sets ``family`` (its registry name), ``machine`` (the machine its model
+    describes), ``params_type`` (its settings dataclass, with ``motor`` and ``strategy``) and
+    ``strategies`` (name → class, in registry order: the ``strategy`` index of the commands), and
+    implements :meth:`_observe` (the estimate from the measurements), :meth:`_decide` (the law
+    proper, the only part timed into ``compute_ns``) and :meth:`_command` (the law's output →
+    the command: pulses and the diagnostic fields). :meth:`_dc_link` sees the measured DC-link
+    voltage whenever it changes. Strategies switch at a step boundary.
+    """
+
+    family: ClassVar[str]
+    machine: ClassVar[Machine]
+    params_type: ClassVar[type]
+    strategies: ClassVar[Mapping[str, type]]
+
+    def __init__(self, params: Any, *, ts: float) -> None:
+        self.params = params
+        self.ts = ts
+        self._names = tuple(self.strategies)
+        self.set_strategy(params.strategy)
+        self._u_dc = NAN
+
+    def set_strategy(self, name: str) -> None:
+        """Switch the control law; takes effect at the next step. ValueError if unknown."""
+        self.strategy: Any = instantiate(self.family, self.strategies, name)
+        self._index = float(self._names.index(name))
+
+    def _dc_link(self, u_dc: float) -> None:
+        """The measured DC-link voltage (V) changed (and at the first step)."""
+
+    def _observe(self, state: State) -> None:
+        raise NotImplementedError
+
+    def _decide(self, state: State, ref: Reference) -> Any:
+        raise NotImplementedError
+
+    def _command(self, out: Any, state: State, compute_ns: float) -> Command:
+        """Command k from the law's output: :meth:`command` of its pulses and diagnostics."""
+        raise NotImplementedError
+
+    def command(
+        self, state: State, pulses: PhasePulses, diagnostics: tuple[float, ...], compute_ns: float
+    ) -> Command:
+        """The command record: the diagnostics are the command's
+        :data:`~predictive_drive.core.signals.COMMAND_DIAGNOSTICS`, in that order."""
+        return new_record(
+            Command, (state.k, state.t, *pulses, self._index, *diagnostics, compute_ns)
+        )
+
+    def decision_inputs(self, states: list[State]) -> list[Any] | None:
+        """What ``strategy.decide`` takes for each of ``states`` (its first argument), when the
+        estimate is a function of the state alone; None when it has memory. For timing strategies
+        on recorded cases, as paper 001 Table 11 does."""
+        return None
+
+    def step(self, state: State, ref: Reference) -> Command:
+        if state.u_dc != self._u_dc:
+            self._u_dc = state.u_dc
+            self._dc_link(state.u_dc)
+        self._observe(state)
+        t0 = perf_counter_ns()
+        out = self._decide(state, ref)
+        elapsed = perf_counter_ns() - t0
+        return self._command(out, state, float(elapsed))
+
+
+class Decision(NamedTuple):
+    """A finite-control-set law's choice: a voltage vector for a share of Ts, then zero."""
+
+    vector: int  #: 0..6
+    fraction: float  #: share of Ts the vector is applied, 0..1 (rest: zero vector)
+    t_u: float  #: raw deadbeat time, s (NaN if none was computed)
+    cal: int  #: predictions evaluated
+
+
+class VectorController(Controller):
+    """The MPTC families: the law picks a :class:`Decision`; it is applied as the vector for its
+    share of Ts and then the zero vector (000 or 111, whichever needs fewer switch changes).
+
+    :meth:`_observe` leaves the estimate the command reports in ``est_torque`` (N·m),
+    ``est_flux`` (|ψ̂_s|, Wb) and ``est_flux_angle`` (rad, αβ, [0, 2π)); ``_volts`` holds V0..V6
+    for the measured DC link. :meth:`_applied` sees the decision after the command is formed.
+    """
+
+    def __init__(self, params: Any, *, ts: float) -> None:
+        super().__init__(params, ts=ts)
+        self.switches = (0, 0, 0)
+        self._volts: tuple[complex, ...] = ()
+        self.est_torque = 0.0
+        self.est_flux = 0.0
+        self.est_flux_angle = 0.0
+
+    def _dc_link(self, u_dc: float) -> None:
+        self._volts = vector_voltages(u_dc)
+
+    def _applied(self, d: Decision, state: State) -> None:
+        """Hook after the decision (the IM integrates its flux estimate with the applied voltage)."""
+
+    def _command(self, d: Decision, state: State, compute_ns: float) -> Command:
+        vector, fraction, t_u, cal = d
+        pulses, self.switches = active_then_zero(vector, fraction, self.switches)
+        self._applied(d, state)
+        # built in one piece (not through command()): this is every MPTC step's hot path
+        return new_record(
+            Command,
+            (
+                state.k,
+                state.t,
+                *pulses,
+                self._index,
+                float(vector),
+                fraction,
+                t_u,
+                float(cal),
+                self.est_torque,
+                self.est_flux,
+                self.est_flux_angle,
+                compute_ns,
+            ),
+        )

@@ -1,0 +1,322 @@
+"""What every drive node shares: parameters declared from the scenario dataclasses (their meaning,
+unit and range from the field metadata), the peer watchdog, the executor loop and the jazzy
+shutdown pattern."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import signal
+import sys
+import time
+import typing
+from collections.abc import Callable, Collection, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from ..config import build_section, section_class
+from ..core.fields import Quantity, check_fields, quantity, spec_of
+from ..core.scenario import RunParams
+from ..errors import ConfigError, GraphError
+from ..interface import NAMESPACE, TOPICS
+from .placement import apply_placement, launcher_pid
+from .transport import LocalBus, Outlet, executor, msg_class, qos
+
+__all__ = [
+    "DriveNode",
+    "NodeTimeouts",
+    "WatchedNode",
+    "closing",
+    "describe",
+    "run_main",
+    "spin_main",
+    "spin_nodes",
+]
+
+#: s a closing process may take (bag summary, node and context teardown) before SIGALRM ends it
+CLOSE_TIMEOUT = 30
+
+_INT64 = (-(2**63), 2**63 - 1)
+
+
+@dataclass(frozen=True)
+class NodeTimeouts:
+    """Wall-clock bounds every drive node declares besides its scenario section."""
+
+    peer_timeout: float = quantity(
+        "wall time a lock-step peer may stay silent before the run fails", "s", gt=0, default=10.0
+    )
+    startup_timeout: float = quantity(
+        "wall time to wait for every peer to match before step 0", "s", gt=0, default=60.0
+    )
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
+def describe(q: Quantity | None, hint: Any, *, read_only: bool) -> ParameterDescriptor:
+    """The ROS descriptor of a parameter field: its meaning, unit and range in the description,
+    and a ``FloatingPointRange`` / ``IntegerRange`` for a bounded scalar number."""
+    d = ParameterDescriptor(
+        description=q.text() if q is not None else "", read_only=read_only, dynamic_typing=True
+    )
+    if q is None or q.choices or q.nan_default or (q.low is None and q.high is None):
+        return d
+    if hint is int:
+        low = _INT64[0] if q.low is None else math.ceil(q.low)
+        high = _INT64[1] if q.high is None else math.floor(q.high)
+        d.integer_range = [IntegerRange(from_value=low, to_value=high, step=0)]
+    elif hint is float:
+        low_f = -math.inf if q.low is None else q.low
+        high_f = math.inf if q.high is None else q.high
+        d.floating_point_range = [FloatingPointRange(from_value=low_f, to_value=high_f, step=0.0)]
+    return d
+
+
+class DriveNode(Node):
+    """Base of the drive nodes: declares the shared (``/**``) and own-section parameters from the
+    scenario dataclasses (read-only except those named in ``writable``) and validates them as the
+    scenario loader does."""
+
+    section: str = ""
+    writable: Collection[str] = ()
+
+    def __init__(self, name: str, *, bus: LocalBus | None = None, **kwargs: Any) -> None:
+        self.bus = bus
+        kwargs.setdefault("namespace", NAMESPACE)
+        super().__init__(name, **kwargs)
+        if not self.has_parameter("use_sim_time"):
+            self.declare_parameter("use_sim_time", True)
+        self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+        self.timeouts: NodeTimeouts = build_section(
+            NodeTimeouts, self.declare_fields(NodeTimeouts), {}, self._where()
+        )
+        self.failure: str | None = None
+        self._finished = False
+        self.notify: Callable[[], None] = lambda: None
+
+    @property
+    def finished(self) -> bool:
+        return self._finished
+
+    @finished.setter
+    def finished(self, value: bool) -> None:
+        self._finished = value
+        self.notify()
+
+    def check(self) -> None:
+        """Called by the spin loop at least every 0.1 s (watchdogs)."""
+
+    # -- parameters -------------------------------------------------------------------------
+    def _where(self) -> str:
+        return f"{self.get_fully_qualified_name()} parameters"
+
+    def declare_fields(
+        self, cls: type, nested: dict[str, type] | None = None, prefix: str = ""
+    ) -> dict[str, Any]:
+        """Declare a parameter per field of ``cls`` (nested dataclasses as ``key.field``) and
+        return the values given, as a section mapping for :func:`build_section`."""
+        nested = nested or {}
+        hints = typing.get_type_hints(cls)
+        data: dict[str, Any] = {}
+        for f in dataclasses.fields(cls):
+            name = f"{prefix}{f.name}"
+            if f.name in nested:
+                data[f.name] = self.declare_fields(nested[f.name], None, f"{name}.")
+                continue
+            desc = describe(spec_of(f), hints[f.name], read_only=name not in self.writable)
+            default = None if f.default is dataclasses.MISSING else f.default
+            value = self.declare_parameter(name, default, desc).value
+            if value is None:
+                continue
+            data[f.name] = list(value) if isinstance(value, (list, tuple)) else value
+        return data
+
+    def section_class(self, run: RunParams) -> tuple[type, dict[str, type]]:
+        """The dataclass of this node's scenario section (and its nested ones)."""
+        return section_class(self.section, run.machine)
+
+    def load_params(self) -> tuple[RunParams, Any]:
+        """(shared run parameters, this node's section dataclass), validated like a scenario file."""
+        where = self._where()
+        run = build_section(RunParams, self.declare_fields(RunParams), {}, f"{where} (/**)")
+        if not self.section:
+            return run, None
+        cls, nested = self.section_class(run)
+        return run, build_section(cls, self.declare_fields(cls, nested), nested, where)
+
+    @property
+    def peer_timeout(self) -> float:
+        return self.timeouts.peer_timeout
+
+    @property
+    def startup_timeout(self) -> float:
+        return self.timeouts.startup_timeout
+
+    # -- lock-step helpers --------------------------------------------------------------------
+    def publisher(self, key: str) -> Any:
+        t = TOPICS[key]
+        pub = self.create_publisher(msg_class(t.type), t.name, qos(t.qos))
+        return pub if self.bus is None else Outlet(pub, self.bus)
+
+    def subscription(self, key: str, callback: Callable[[bytes], None]) -> Any:
+        """Raw (serialized) subscription; through the process's :class:`LocalBus` if it has one."""
+        t = TOPICS[key]
+        if self.bus is not None:
+            self.bus.subscribe(t.name, callback)
+            return None
+        return self.create_subscription(msg_class(t.type), t.name, callback, qos(t.qos), raw=True)
+
+    def wait_matched(self, pub: Any, count: int, what: str) -> None:
+        """Block (briefly, in a callback is fine: matching runs in DDS threads) until ``pub`` has
+        ``count`` matched subscriptions, or fail after startup_timeout."""
+        deadline = time.monotonic() + self.startup_timeout
+        while pub.get_subscription_count() < count:
+            if time.monotonic() > deadline:
+                raise GraphError(
+                    f"{self.get_fully_qualified_name()}: {pub.topic_name} has "
+                    f"{pub.get_subscription_count()} of {count} subscribers ({what}) after "
+                    f"{self.startup_timeout} s"
+                )
+            time.sleep(0.005)
+
+    def fail(self, message: str) -> None:
+        self.failure = message
+        self.get_logger().error(message)
+        self.notify()
+
+
+class WatchedNode(DriveNode):
+    """A lock-step node that fails when the message it waits for does not come in time
+    (``startup_timeout`` before its first message, ``peer_timeout`` after)."""
+
+    def __init__(self, name: str, **kw: Any) -> None:
+        super().__init__(name, **kw)
+        self._last_progress = time.monotonic()
+        self._started = False
+
+    def progressed(self) -> None:
+        self._last_progress = time.monotonic()
+        self._started = True
+
+    def check(self) -> None:
+        if self.finished or self.failure:
+            return
+        limit = self.peer_timeout if self._started else self.startup_timeout
+        if time.monotonic() - self._last_progress > limit:
+            self.fail(
+                f"{self.get_fully_qualified_name()}: {self.stalled_message()} within {limit} s"
+            )
+
+    def stalled_message(self) -> str:
+        """What this node has been waiting for (names the silent peer and the topic)."""
+        raise NotImplementedError
+
+
+def spin_main(
+    make: Callable[[LocalBus | None], list[DriveNode]],
+    *,
+    args: list[str] | None = None,
+    bus: LocalBus | None = None,
+) -> int:
+    """Jazzy main pattern: init, ``make(bus)`` the nodes, spin them, close them however the run
+    ends (the logger closes its bag), shut down. Returns the process exit code."""
+    rclpy.init(args=args)
+    nodes: list[DriveNode] = []
+    code = 0
+    try:
+        nodes = make(bus)
+        code = spin_nodes(nodes, bus)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 130
+    except (ConfigError, GraphError) as e:
+        print(f"{e}", file=sys.stderr)
+        code = 2
+    finally:
+        with closing():
+            for n in nodes:
+                if n.failure:
+                    print(n.failure, file=sys.stderr)
+                close = getattr(n, "close", None)
+                if close is not None:
+                    close()
+                n.destroy_node()
+            rclpy.try_shutdown()
+    return code
+
+
+@contextmanager
+def closing() -> Iterator[None]:
+    """The process is closing: a second SIGINT/SIGTERM (or one still pending after rclpy's own
+    handler shut the context down) must not raise KeyboardInterrupt in the middle of closing the
+    bag. The launcher still escalates to SIGKILL if closing hangs; without a launcher (or with
+    one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    signal.alarm(CLOSE_TIMEOUT)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+
+
+#: local deliveries between executor polls (~70 steps of the drive graph)
+_BATCH = 500
+
+
+def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
+    """Spin until every node has finished or one fails; 0 on success, 1 on a node failure.
+
+    The executor runs in C++ until a node signals (finished / failed) or 0.1 s pass; then the
+    watchdogs run. Every spin has a finite timeout (see :func:`executor`). With a ``bus``, its
+    queued messages are delivered in batches, the executor (parameter services, outside traffic)
+    polled between them.
+    """
+    from rclpy.task import Future
+
+    ex = executor()
+    done = Future()
+
+    def notify() -> None:
+        if not done.done() and (any(n.failure for n in nodes) or all(n.finished for n in nodes)):
+            done.set_result(True)
+
+    for n in nodes:
+        n.notify = notify
+        ex.add_node(n)
+    launcher = launcher_pid()
+    try:
+        while rclpy.ok():
+            if bus is not None and bus.run(_BATCH):
+                ex.spin_until_future_complete(done, timeout_sec=0.0)
+            else:
+                ex.spin_until_future_complete(done, timeout_sec=0.1)
+            for n in nodes:
+                n.check()
+            if launcher and os.getppid() != launcher and not nodes[0].failure:
+                nodes[0].fail(f"the launcher (pid {launcher}) is gone; ending the run")
+            notify()
+            if any(n.failure for n in nodes):
+                return 1
+            if all(n.finished for n in nodes):
+                return 0
+    finally:
+        ex.shutdown(timeout_sec=1.0)
+    return 130
+
+
+def run_main(node_cls: Callable[[], DriveNode], args: list[str] | None = None) -> int:
+    """``main`` of a node process: the launcher's placement, then :func:`spin_main`."""
+    if args is None:
+        args = sys.argv
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    apply_placement()
+    return spin_main(lambda _bus: [node_cls()], args=args)
