@@ -146,8 +146,28 @@ def test_reproduce_ipmsm_validation_shortened(tmp_path):
 
 def test_reproduce_spmsm_sweep_shortened(tmp_path):
     d = reproduce("spmsm_analysis", duration=0.02, out_root=tmp_path)
-    th = [r.get("torque_threshold") for r in d["rows"]]
+    th = [r["settings"].get("torque_controller.torque_threshold") for r in d["rows"]]
     assert th == [None] + [round(0.1 * i, 1) for i in range(1, 16)]
+    assert d["rows"][6]["label"] == "simplified1 ±0.6"
     bag = d["rows"][6]["bag"]  # threshold 0.6: the bag stores the swept scenario
     assert analyze(bag)["threshold"] == 0.6
     assert analyze(d["rows"][15]["bag"])["threshold"] == 1.5
+
+
+def test_mtpa_study_shortened_rows_and_claims(tmp_path):
+    """The whole study on paper 002's scenario, each run shortened to 0.3 s (the first load
+    step only): every strategy, mismatch and form gives its row with the model's optimum."""
+    d = reproduce("hs_ipmsm_mtpa", duration=0.3, out_root=tmp_path)
+    rows = d["rows"]
+    assert len(rows) == 3 + 2 * 8 + 1  # strategies, mismatched model-based ones, as_printed
+    keys = {"strategy", "mismatch", "load_torque", "theta_deg", "theta_mtpa_deg", "i_s"}
+    assert keys | {"i_s_mtpa", "i_s_zero_d", "settle_s"} <= set(rows[0])
+    assert all(r["load_torque"] == 2.0 for r in rows)
+    assert [r["theta_mtpa_deg"] for r in rows] == [pytest.approx(1.1085, abs=1e-3)] * len(rows)
+    formula = next(r for r in rows if r["strategy"] == "foc_formula")
+    assert formula["theta_deg"] == pytest.approx(formula["theta_mtpa_deg"], abs=0.05)
+    printed = [r for r in rows if r["form"] == "as_printed"]
+    assert len(printed) == 1 and printed[0]["theta_deg"] > 1.5 * printed[0]["theta_mtpa_deg"]
+    (claim,) = d["claims"]
+    assert claim["load_torque"] == 2.0 and claim["settles_under_1_s"]
+    assert claim["less_current_than_zero_d"] in ("confirmed", "not resolved", "refuted")

@@ -216,3 +216,18 @@ def test_diagnostics_values_equal_the_trace_figures(long_recording):
             assert float(values[key]) == pytest.approx(value, rel=1e-9, abs=1e-12), key
         assert float(values["steps"]) == k1
         assert values["strategy"] == "db_mptc"
+
+
+def test_a_record_of_another_layout_is_read_by_field_name():
+    """A command recorded before the field-oriented fields existed: every field it has lands in
+    its place, the ones it lacks are NaN (old recordings stay readable)."""
+    from predictive_drive.interface import CODECS, MultiArrayCodec
+
+    old = tuple(f for f in TOPICS["command"].fields if f not in ("current_angle", "mtpa_gradient"))
+    values = tuple(float(i) for i in range(len(old)))
+    row = CODECS["command"].decode(MultiArrayCodec(old).encode(values))
+    by_name = dict(zip(TOPICS["command"].fields, row))
+    assert all(by_name[f] == v for f, v in zip(old, values))
+    assert np.isnan(by_name["current_angle"]) and np.isnan(by_name["mtpa_gradient"])
+    with pytest.raises(BagError, match="layout mismatch"):
+        CODECS["command"].decode(MultiArrayCodec(("x", "y")).encode((1.0, 2.0)))

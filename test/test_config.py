@@ -176,7 +176,9 @@ def test_bad_scenario_errors_name_file_and_key(tmp_path, case):
 
 
 def test_unknown_scenario_name_lists_available():
-    with pytest.raises(ConfigError, match="available: im_paper, im_short"):
+    with pytest.raises(
+        ConfigError, match="available: hs_ipmsm_mtpa, hs_ipmsm_mtpa_short, im_paper"
+    ):
         load_scenario("nope")
 
 
@@ -184,3 +186,21 @@ def test_dataclasses_are_frozen():
     sc = load_scenario("im_short")
     with pytest.raises(dataclasses.FrozenInstanceError):
         sc.plant.u_dc = 1.0  # type: ignore[misc]
+
+
+def test_mtpa_scenarios_have_the_papers_values():
+    hs = load_scenario("hs_ipmsm_mtpa")
+    m = hs.plant.motor
+    assert (m.r_s, m.l_d, m.l_q, m.psi_f, m.p, m.rated_torque, m.rated_speed_rpm) == (
+        0.78, 0.0045, 0.0085, 0.303, 3, 6.5, 2000.0,
+    )  # fmt: skip
+    assert (hs.ts, hs.run.duration) == (2e-4, 3.0)
+    assert hs.plant.load_times == (0.0, 1.0, 2.0) and hs.plant.load_values == (2.0, 4.0, 6.0)
+    assert hs.speed_pi.speed_values_rpm[0] * 2 * 3.141592653589793 / 60 == pytest.approx(100.0)
+    c = hs.controller
+    assert (c.injection_amplitude, c.injection_hz, c.injection_form) == (0.05, 500.0, "corrected")
+    assert hs.family == "foc_pmsm" and c.motor == m
+    ip = load_scenario("ipmsm_mtpa")
+    assert ip.plant.motor == load_scenario("ipmsm_validation").plant.motor  # paper 001's IPMSM
+    assert ip.plant.load_values == (5.0, 10.0, 15.0)
+    assert all(b - a >= 1.0 for a, b in zip(ip.plant.load_times, (*ip.plant.load_times[1:], 4.5)))

@@ -263,29 +263,42 @@ def test_bad_scenario_file_fails_before_starting_anything(tmp_path):
     assert not (tmp_path / "never").exists()
 
 
-def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path):
-    """The PMSM strategies switch through the parameter service like the IM ones; replaying the
-    recorded switch step in-process gives the same sequences bit for bit."""
+SWITCHES = {
+    # scenario, start, switch time s, to, steps, the strategy's own check on the commands
+    "mptc_pmsm": ("ipmsm_short", "mptc", 0.02, "simplified3", 6000, "cal"),
+    "foc_pmsm": ("hs_ipmsm_mtpa_short", "foc_formula", 0.1, "foc_injection", 1500, "current_angle"),
+}
+
+
+@pytest.mark.parametrize("family", SWITCHES)
+def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path, family):
+    """The PMSM families switch strategy through the parameter service like the IM one;
+    replaying the recorded switch step in-process gives the same sequences bit for bit (for
+    field-oriented control, its diagnostics among them)."""
     from predictive_drive.core.runner import run_inprocess
 
+    scenario, start, at, to, steps, field = SWITCHES[family]
     r = run(
-        "ipmsm_short",
+        scenario,
         duration=0.3,
         engine="ros",
-        strategy="mptc",
-        switches=[(0.02, "simplified3")],
-        out=tmp_path / "pmsm",
+        strategy=start,
+        switches=[(at, to)],
+        out=tmp_path / "b",
     )
     tr, info = read_bag(r.bag)
-    assert info.complete and tr.steps == 6000
+    assert info.complete and tr.steps == steps
     names = tr.strategy_names
-    assert names == ("mptc", "simplified1", "simplified2", "simplified3")
     s = tr.col("command", "strategy").astype(int)
-    first = int(np.flatnonzero(s == 3)[0])
-    # the plant waits for the launcher, so the request goes out at 0.02 s: it lands a few steps on
-    assert 400 <= first < 3000 and np.all(s[first:] == 3) and np.all(s[:first] == 0)
-    cal = tr.col("command", "cal")
-    assert np.all(cal[:first] == 7) and cal[first:].mean() < 3
-    sc = load_scenario("ipmsm_short", strategy="mptc")
-    ref = run_inprocess(sc, switches=[(first, "simplified3")])
-    assert_same_run(tr, ref)
+    first = int(np.flatnonzero(s == names.index(to))[0])
+    # the plant waits for the launcher, so the request goes out at the time: it lands a few
+    # steps on
+    assert at <= first * tr.ts < 0.28
+    assert np.all(s[first:] == names.index(to)) and np.all(s[:first] == names.index(start))
+    col = tr.col("command", field)
+    if field == "cal":  # all 7 vectors before, at most 4 candidates after
+        assert np.all(col[:first] == 7) and col[first:].mean() < 3
+    else:  # the current angle in every command, at the MTPA angle before and after
+        assert np.all(np.isfinite(col)) and abs(np.degrees(col[first - 1]) - 3.30) < 0.05
+    sc = load_scenario(scenario, strategy=start, duration=0.3)
+    assert_same_run(tr, run_inprocess(sc, switches=[(first, to)]))

@@ -15,7 +15,7 @@ import numpy as np
 from . import __version__
 from .api import analyze, bench, report, reproduce, run
 from .errors import PredictiveDriveError
-from .reports.papers import PAPER_TABLES
+from .reports.papers import MTPA_STUDIES, PAPER_TABLES
 from .ros.placement import AFFINITIES, SCHED_POLICIES
 
 __all__ = ["main"]
@@ -105,8 +105,15 @@ def _print_metrics(d: dict[str, Any]) -> None:
         )
     for name, value, how in rows:
         print(f"  {name:<11}{value:>16}   {how}")
-    util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m["utilization"]))
-    print(f"  {'vectors':<11}{util}")
+    if any(m["utilization"]):
+        util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m["utilization"]))
+        print(f"  {'vectors':<11}{util}")
+    for st in d.get("load_steps", []):
+        print(
+            f"  load {st['load_torque']:g} N·m from {st['t_start']:g} s: current angle "
+            f"{st['theta_deg']:.2f} deg, |i_s| {st['i_s']:.4f} A (means over the step's second "
+            f"half, measured), angle settled {st['settle_s']:.3f} s after the step"
+        )
 
 
 def cmd_run(a: argparse.Namespace) -> int:
@@ -146,16 +153,52 @@ def cmd_report(a: argparse.Namespace) -> int:
     return 0
 
 
+def _print_mtpa(d: dict[str, Any]) -> None:
+    print(f"{d['scenario']}: {d['paper']}  (engine {d['engine']})")
+    if d["duration"] is not None:
+        print(f"NOTE: runs shortened to {d['duration']:g} s")
+    print(
+        f"{'strategy':<14} {'form':<10} {'L_d':>4} {'L_q':>4} {'T_L':>5} {'theta':>7} "
+        f"{'MTPA':>7} {'error':>6} {'|i_s|':>8} {'MTPA':>8} {'excess':>7} {'i_d=0':>8} "
+        f"{'settle':>7}"
+    )
+    print(
+        f"{'':<14} {'':<10} {'x':>4} {'x':>4} {'N·m':>5} {'deg':>7} {'deg':>7} {'deg':>6} "
+        f"{'A':>8} {'A':>8} {'%':>7} {'A':>8} {'s':>7}"
+    )
+    for r in d["rows"]:
+        m = r["mismatch"]
+        err = r["theta_deg"] - r["theta_mtpa_deg"]
+        excess = 100.0 * (r["i_s"] / r["i_s_mtpa"] - 1.0)
+        print(
+            f"{r['strategy']:<14} {r['form'] or '':<10} {m['l_d']:>4g} {m['l_q']:>4g} "
+            f"{r['load_torque']:>5g} {r['theta_deg']:>7.2f} {r['theta_mtpa_deg']:>7.2f} "
+            f"{err:>+6.2f} {r['i_s']:>8.4f} {r['i_s_mtpa']:>8.4f} {excess:>+7.3f} "
+            f"{r['i_s_zero_d']:>8.4f} {r['settle_s']:>7.3f}"
+        )
+    for c in d["claims"]:
+        print(
+            f"paper's claims at {c['load_torque']:g} N·m: settles in {c['settle_s']:.3f} s "
+            f"({'confirmed' if c['settles_under_1_s'] else 'REFUTED'}: well under 1 s); "
+            f"|i_s| {c['i_s']:.4f} A vs {c['i_s_zero_d_measured']:.4f} A under i_d = 0: "
+            f"{100 * c['saving_vs_zero_d']:+.3f} % saved of {100 * c['saving_possible']:.3f} % "
+            f"possible, resolution {100 * c['resolution']:.3f} % ({c['less_current_than_zero_d']}:"
+            f" less current than i_d = 0)"
+        )
+    print(f"How computed: {d['how']}")
+
+
 def _row_label(r: dict[str, Any]) -> str:
-    if "torque_threshold" in r:
-        return f"{r['strategy']} ±{r['torque_threshold']:g}"
-    return r["strategy"]
+    return str(r.get("label") or r["strategy"])
 
 
 def cmd_reproduce(a: argparse.Namespace) -> int:
     d = reproduce.reproduce(a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration)
     if a.json:
         print(dumps(d))
+        return 0
+    if d["scenario"] in MTPA_STUDIES:
+        _print_mtpa(d)
         return 0
     cols = PAPER_TABLES[d["scenario"]].columns
     print(f"{d['scenario']} vs {d['paper']}  (engine {d['engine']})")
@@ -317,7 +360,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.set_defaults(func=cmd_report)
 
     rp = sub.add_parser("reproduce", help="a paper's table side by side with our figures")
-    rp.add_argument("scenario", choices=sorted(PAPER_TABLES))
+    rp.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES]))
     rp.add_argument("--engine", default="inprocess", choices=run.ENGINES)
     rp.add_argument(
         "--repeats", type=int, default=5, help="timing repeats for compute ratios (median)"

@@ -25,6 +25,7 @@ from .interface import NAMESPACE, NODES
 
 __all__ = [
     "FAMILY_KEY",
+    "apply_settings",
     "LEGACY_FAMILIES",
     "SHARED",
     "build_section",
@@ -246,3 +247,49 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
         )
     except ConfigError as e:
         raise ConfigError(f"{path}: {ctrl_key}: {e}") from None
+
+
+def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> str:
+    """Scenario text with parameters replaced, as a new parameter file (a run's bag stores it).
+
+    Keys are dotted: ``ts`` or ``duration`` (shared), or ``<node>.<key>[.<sub>]``, e.g.
+    ``torque_controller.motor.l_q``. A value is a number, a string or a list; a string ``*f``
+    multiplies the present value by ``f`` (``*0.7``: 70 % of it). ConfigError names the key and
+    what it may be."""
+    doc = yaml.safe_load(text)
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{where}: expected a ROS 2 parameter file")
+    for key, value in settings.items():
+        node, _, rest = key.partition(".")
+        if node in NODES and rest:
+            section, path = f"{NAMESPACE}/{node}", rest.split(".")
+        elif not rest:
+            section, path = SHARED, [node]
+        else:
+            raise ConfigError(
+                f"setting {key!r}: expected a shared key (ts, duration, ...) or "
+                f"<node>.<key> with node one of {', '.join(NODES)}"
+            )
+        params = _params(doc, section, where)
+        for part in path[:-1]:
+            sub = params.get(part)
+            if not isinstance(sub, dict):
+                raise ConfigError(f"setting {key!r}: {section} has no group {part!r}")
+            params = sub
+        leaf = path[-1]
+        if leaf not in params:
+            raise ConfigError(
+                f"setting {key!r}: {section} has no key {leaf!r} here; keys: "
+                f"{', '.join(sorted(params))}"
+            )
+        if isinstance(value, str) and value.startswith("*"):
+            try:
+                factor = float(value[1:])
+            except ValueError:
+                raise ConfigError(f"setting {key!r}: {value!r} is not *<number>") from None
+            present = params[leaf]
+            if isinstance(present, bool) or not isinstance(present, (int, float)):
+                raise ConfigError(f"setting {key!r}: {present!r} is not a number to scale")
+            value = present * factor
+        params[leaf] = value
+    return str(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))

@@ -191,14 +191,19 @@ class MultiArrayCodec:
         return self.prefix + self._fmt.pack(*values)
 
     def decode(self, data: bytes) -> tuple[float, ...]:
-        """Values of a message with exactly this layout (fast path); BagError otherwise."""
-        if len(data) != self.size or not data.startswith(self.prefix):
-            labels, values = decode_multiarray(data)
+        """Values of a message in this layout's field order. A message of exactly this layout
+        takes the fast path; another labelled layout (a recording of another version) is read
+        by field name, NaN for fields it lacks; BagError if it lacks the step or time."""
+        if len(data) == self.size and data.startswith(self.prefix):
+            return self._fmt.unpack_from(data, len(self.prefix))
+        labels, values = decode_multiarray(data)
+        by_name = dict(zip(labels, values))
+        if len(labels) != len(values) or not {"k", "t"} <= set(by_name):
             raise BagError(
                 f"Float64MultiArray layout mismatch: expected labels {','.join(self.fields)}, got "
                 f"{','.join(labels)} with {len(values)} values"
             )
-        return self._fmt.unpack_from(data, len(self.prefix))
+        return tuple(by_name.get(f, math.nan) for f in self.fields)
 
 
 CODECS: dict[str, MultiArrayCodec] = {

@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..bag import BagInfo, read_bag
+from ..core.analysis import load_steps
+from ..core.machines import Machine
 from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..recording import scenario_of
 
-__all__ = ["Evaluation", "evaluate", "metrics_window", "report"]
+__all__ = ["Evaluation", "evaluate", "metrics_window", "report", "steps_of"]
 
 
 @dataclass(frozen=True)
@@ -51,14 +55,29 @@ def evaluate(bag: str | Path) -> Evaluation:
 
 
 def report(bag: str | Path) -> dict[str, Any]:
-    """Metrics of a recording, from the recording alone."""
+    """Metrics of a recording, from the recording alone; for a PMSM, per load step also the
+    measured current angle and amplitude it settled to (the MTPA view, SPEC §3.4)."""
     ev = evaluate(bag)
-    return {
+    out: dict[str, Any] = {
         "bag": str(Path(bag)),
         "scenario": ev.info.info["scenario"],
+        "family": ev.scenario.family,
         "strategy": ev.info.info["strategy"],
         "engine": ev.info.info["engine"],
         "steps": ev.steps,
         "complete": ev.info.complete,
         "metrics": ev.metrics.as_dict(),
     }
+    if steps := steps_of(ev):
+        out["load_steps"] = steps
+    return out
+
+
+def steps_of(ev: Evaluation) -> list[dict[str, Any]]:
+    """A PMSM run's load steps (the measured current angle and amplitude each settled to); none
+    for an induction machine, whose rotor angle says nothing of its current's."""
+    sc = ev.scenario
+    if sc.machine != Machine.PMSM:
+        return []
+    steps = load_steps(ev.trace, load_times=sc.plant.load_times, load_values=sc.plant.load_values)
+    return [{**dataclasses.asdict(st), "theta_deg": math.degrees(st.theta)} for st in steps]

@@ -17,7 +17,7 @@ from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import ConfigError
 from ..recording import RunRecorder, bag_info, default_bag_dir
-from .report import evaluate
+from .report import evaluate, steps_of
 
 __all__ = ["ENGINES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
 
@@ -33,9 +33,10 @@ class RunResult:
     bag: Path
     wall_s: float
     metrics: Metrics
+    load_steps: list[dict[str, Any]]
 
     def as_dict(self) -> dict[str, Any]:
-        return {
+        out = {
             "scenario": self.scenario,
             "strategy": self.strategy,
             "engine": self.engine,
@@ -44,6 +45,9 @@ class RunResult:
             "wall_s": self.wall_s,
             "metrics": self.metrics.as_dict(),
         }
+        if self.load_steps:
+            out["load_steps"] = self.load_steps
+        return out
 
 
 def switch_steps(sc: Scenario, switches: Sequence[tuple[float, str]]) -> list[tuple[int, str]]:
@@ -122,4 +126,4 @@ def run(
         )
     wall = time.perf_counter() - t0
     ev = evaluate(bag)
-    return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics)
+    return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics, steps_of(ev))

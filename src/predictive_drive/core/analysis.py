@@ -1,10 +1,15 @@
-"""Vector utilization analysis (paper 001 §3-5, SPEC §6.4): how often each voltage vector was chosen
+"""Analyses of a recorded run beyond its metrics.
+
+Vector utilization (paper 001 §3-5, SPEC §6.4): how often each voltage vector was chosen
 by torque-error band, by flux sector × torque-error sign and by 12 sectors × torque- and flux-error
 sign, and the candidate sets a stated rule derives from that. This is how the simplified strategies
 were designed; here it is a function of a recording.
 
 Errors are the controller's own: ΔT = T* - T̂ and Δψ = ψ* - |ψ̂| at each step, the sector that of ψ̂
 (all recorded in the command and reference records), so the tables describe what the strategy saw.
+
+Load steps (the MTPA study, SPEC §3.4): the measured current angle and amplitude each load settles
+to, and how long the angle took.
 """
 
 from __future__ import annotations
@@ -22,8 +27,11 @@ __all__ = [
     "BANDS",
     "DERIVATION_RULE",
     "MIN_RELATIVE",
+    "LoadStep",
     "Utilization",
     "derive_candidates",
+    "load_steps",
+    "measured_current_angle",
     "utilization",
 ]
 
@@ -99,3 +107,68 @@ def derive_candidates(counts: np.ndarray, *, min_relative: float = MIN_RELATIVE)
         out[idx] = keep
     result: list[Any] = out.tolist()
     return result
+
+
+@dataclass(frozen=True)
+class LoadStep:
+    """How a run settled after one load step (the MTPA study, SPEC §3.4).
+
+    ``theta`` (rad) and ``i_s`` (A) are means over the step's second half of the *measured*
+    current angle from the q axis, atan2(-i_d, |i_q|), and amplitude |i_αβ|; ``settle_s`` is the
+    time from the step until the measured angle, averaged over ``average_s``, stays within
+    ``band`` rad of ``theta`` for the rest of the step."""
+
+    load_torque: float
+    t_start: float
+    t_end: float
+    theta: float
+    i_s: float
+    settle_s: float
+
+
+def measured_current_angle(trace: Trace) -> np.ndarray:
+    """atan2(-i_d, |i_q|) of the measured current at every state, rad (rotor frame by θ_e)."""
+    i = trace.col("state", "i_alpha") + 1j * trace.col("state", "i_beta")
+    i_dq = i * np.exp(-1j * trace.col("state", "theta_e"))
+    return np.arctan2(-i_dq.real, np.abs(i_dq.imag))
+
+
+def load_steps(
+    trace: Trace,
+    *,
+    load_times: tuple[float, ...],
+    load_values: tuple[float, ...],
+    band: float = math.radians(0.5),
+    average_s: float = 2e-3,
+) -> list[LoadStep]:
+    """One :class:`LoadStep` per load of the scenario's profile that the run covers."""
+    ts = trace.ts
+    n = trace.steps
+    t = np.arange(n) * ts
+    theta = measured_current_angle(trace)[:n]
+    amp = np.hypot(trace.col("state", "i_alpha"), trace.col("state", "i_beta"))[:n]
+    w = max(1, round(average_s / ts))
+    smooth = np.convolve(theta, np.ones(w) / w, mode="full")[:n]
+    out = []
+    ends = (*load_times[1:], math.inf)
+    for start, end, value in zip(load_times, ends, load_values):
+        if start >= n * ts:
+            break  # the run (or its recording) ends before this load
+        end = min(end, n * ts)
+        k0, k1 = step_window(trace, start, end)
+        half = step_window(trace, 0.5 * (start + end), end)
+        final = float(theta[half[0] : half[1]].mean())
+        seg = smooth[k0 + w : k1]  # a full averaging window after the step
+        outside = np.flatnonzero(np.abs(seg - final) > band)
+        settle = float((outside[-1] + 1 + w) * ts) if outside.size else w * ts
+        out.append(
+            LoadStep(
+                load_torque=float(value),
+                t_start=float(t[k0]),
+                t_end=float(k1 * ts),
+                theta=final,
+                i_s=float(amp[half[0] : half[1]].mean()),
+                settle_s=settle,
+            )
+        )
+    return out

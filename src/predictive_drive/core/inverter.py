@@ -22,6 +22,8 @@ __all__ = [
     "PhasePulses",
     "active_then_zero",
     "clarke",
+    "inverse_park",
+    "park",
     "segments",
     "state_to_vector",
     "unit_vectors",
@@ -48,6 +50,16 @@ _STATE_INDEX = {s: n for n, s in enumerate(VECTOR_STATES)}
 def clarke(x_a: float, x_b: float, x_c: float) -> complex:
     """Amplitude-invariant Clarke transform, x_αβ = 2/3 (x_a + a x_b + a² x_c)."""
     return (2.0 / 3.0) * (x_a + A * x_b + A * A * x_c)
+
+
+def park(x_ab: complex, theta: float) -> complex:
+    """Stationary αβ → rotor dq at the electrical angle θ (rad): x_dq = x_αβ·e^{-jθ}."""
+    return x_ab * complex(math.cos(theta), -math.sin(theta))
+
+
+def inverse_park(x_dq: complex, theta: float) -> complex:
+    """Rotor dq at the electrical angle θ (rad) → stationary αβ: x_αβ = x_dq·e^{jθ}."""
+    return x_dq * complex(math.cos(theta), math.sin(theta))
 
 
 def unit_vectors() -> tuple[complex, ...]:

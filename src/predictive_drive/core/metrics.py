@@ -22,7 +22,8 @@ class Metrics:
     t_rmse: sqrt(mean((T_e - T*)²)), N·m, true plant torque at sample k against the reference in
     force at step k. psi_rmse: same for |ψ_s| against ψ*, Wb. f_ave_hz: device transitions / (6·t),
     two transitions per leg change. cal_ave: mean predictions per step. utilization: share of steps
-    choosing V0..V6. deadbeat_share: share of steps with 0 < t_u < Ts. compute_ns_*: control law only.
+    choosing V0..V6 (steps of a field-oriented law pick no vector and count for none).
+    deadbeat_share: share of steps with 0 < t_u < Ts. compute_ns_*: control law only.
     speed_rmse: ω_m against ω_m*, rad/s. thd: phase-a current distortion over ``thd_cycles`` whole
     electrical cycles of the THD window — every spectral line up to Nyquist but DC and the
     fundamental (at ``thd_fundamental_hz``) — and thd_harmonics the integer harmonics alone (see
@@ -136,7 +137,8 @@ def compute_metrics(
     speed = trace.col("state", "omega_m")[k0:k1]
     speed_ref = trace.col("reference", "speed_ref")[k0:k1]
     transitions = trace.col("state", "transitions")[k0 + 1 : k1 + 1].sum()
-    vec = trace.col("command", "vector")[k0:k1].astype(int)
+    vec = trace.col("command", "vector")[k0:k1]
+    fcs = np.isfinite(vec)  # steps decided by a finite-control-set law (not FOC)
     t_u = trace.col("command", "t_u")[k0:k1]
     ns = trace.col("command", "compute_ns")[k0:k1]
     strat = trace.col("command", "strategy")[k0:k1].astype(int)
@@ -154,7 +156,7 @@ def compute_metrics(
         psi_rmse=float(np.sqrt(np.mean((psi - psi_ref) ** 2))),
         f_ave_hz=float(transitions / (6.0 * n * trace.ts)),
         cal_ave=float(trace.col("command", "cal")[k0:k1].mean()),
-        utilization=tuple(float(x) for x in np.bincount(vec, minlength=7)[:7] / n),
+        utilization=tuple(float(x) for x in np.bincount(vec[fcs].astype(int), minlength=7)[:7] / n),
         deadbeat_share=deadbeat / n,
         compute_ns_mean=float(ns.mean()),
         compute_ns_median=float(np.median(ns)),

@@ -83,13 +83,17 @@ class Command(NamedTuple):
     duty_b: float
     duty_c: float
     strategy: float  #: index of the strategy in its controller family's registry order
-    vector: float  #: chosen voltage vector 0..6 (0 = zero vector, realised as 000 or 111)
-    duty: float  #: fraction of Ts the chosen vector is applied (1 for plain FCS)
+    vector: float  #: chosen voltage vector 0..6 (0 = zero vector, 000 or 111); NaN: not FCS
+    duty: float  #: fraction of Ts the chosen vector is applied (1 for plain FCS); NaN: not FCS
     t_u: float  #: raw deadbeat time before clamping, s (NaN where no deadbeat time is computed)
     cal: float  #: number of vector predictions evaluated this step
     torque_est: float  #: controller's torque estimate at k, N·m
     flux_est: float  #: controller's stator-flux magnitude estimate at k, Wb
     flux_angle: float  #: angle of the controller's stator-flux estimate in αβ at k, rad, [0, 2π)
+    current_angle: float  #: FOC: current angle θ from the q axis, dither included, rad (else NaN)
+    i_d_ref: float  #: FOC: d-current reference, A (else NaN)
+    i_q_ref: float  #: FOC: q-current reference, A (else NaN)
+    mtpa_gradient: float  #: foc_injection: demodulated d|T|/dθ / |T|, 1/rad (else NaN)
     compute_ns: float  #: wall time of the control law alone, ns (not deterministic)
 
 

@@ -10,6 +10,7 @@ family        machine     strategies
 ============  ==========  ===================================================================
 mptc_im       induction   mptc, mptc_db, db_mptc (paper 000)
 mptc_pmsm     pmsm        mptc, simplified1, simplified2, simplified3 (paper 001)
+foc_pmsm      pmsm        foc_zero_d, foc_formula, foc_injection (paper 002: FOC with MTPA)
 ============  ==========  ===================================================================
 """
 
@@ -19,6 +20,7 @@ from enum import StrEnum
 from typing import Any
 
 from .base import Controller, Decision, Strategy, VectorController, instantiate
+from .foc_pmsm import FOCController, FOCParams
 from .mptc_im import InductionController, InductionControllerParams
 from .mptc_pmsm import PMSMController, PMSMControllerParams
 
@@ -26,6 +28,8 @@ __all__ = [
     "CONTROLLERS",
     "Controller",
     "Decision",
+    "FOCController",
+    "FOCParams",
     "Family",
     "InductionController",
     "InductionControllerParams",
@@ -45,6 +49,7 @@ class Family(StrEnum):
 
     MPTC_IM = "mptc_im"
     MPTC_PMSM = "mptc_pmsm"
+    FOC_PMSM = "foc_pmsm"
 
 
 #: family name → controller class: the one registry (keys are :class:`Family` members; a
@@ -52,6 +57,7 @@ class Family(StrEnum):
 CONTROLLERS: dict[str, type[Controller]] = {
     Family.MPTC_IM: InductionController,
     Family.MPTC_PMSM: PMSMController,
+    Family.FOC_PMSM: FOCController,
 }
 
 

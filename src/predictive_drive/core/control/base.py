@@ -160,6 +160,10 @@ class VectorController(Controller):
                 self.est_torque,
                 self.est_flux,
                 self.est_flux_angle,
+                NAN,  # current_angle, i_d_ref, i_q_ref, mtpa_gradient: field-oriented only
+                NAN,
+                NAN,
+                NAN,
                 compute_ns,
             ),
         )

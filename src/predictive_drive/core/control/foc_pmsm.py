@@ -1,0 +1,272 @@
+"""Paper 002: field-oriented control of the PMSM with SVPWM, the controller family ``foc_pmsm``
+(SPEC §3.4). Its strategies are the MTPA laws of :mod:`.mtpa`.
+
+Per step: the torque reference T* asks for the current amplitude I_s = |T*|/k_t (k_t = 1.5 p ψ_f,
+the sign carried by i_q); the MTPA law gives the angle θ from the q axis, i_d* = -I_s sin θ,
+i_q* = ±I_s cos θ; the :class:`CurrentLoop` (a PI per axis with decoupling) turns the current
+error into u_dq, limited to the circle inscribed in the hexagon (the PIs hold their integrators
+while it limits: clamping anti-windup); inverse Park at the rotor angle of the period's middle
+(θ_e + ω_e·Ts/2: the volt-seconds of a period act, on average, there), then SVPWM.
+
+The current PIs are designed on the zero-order-hold model of each axis, i(k+1) = a·i(k) + b·u(k)
+with a = e^{-R_s Ts/L}, b = (1 - a)/R_s (the controller's own R_s, L_d, L_q): the PI zero cancels
+the pole, C(z) = (K/b)(z - a)/(z - 1), so the closed loop is first order, i(k+1) = i(k) +
+K·(i* - i(k)), K = 1 - e^{-2π f_c Ts}: the chosen bandwidth f_c exactly, on the nominal model.
+In PI form: K_p = K/b, integrator += K(1 - a)/b·e per step.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from ...errors import ConfigError
+from ..fields import check_fields, choice, quantity
+from ..inverter import inverse_park, park
+from ..machines import Machine
+from ..machines.pmsm import PMSM
+from ..signals import Command, PhasePulses, Reference, State
+from ..svpwm import linear_limit, svpwm
+from .base import Controller
+from .mtpa import INJECTION_FORMS, FormulaMTPA, InjectionMTPA, MTPAContext, MTPAInputs, ZeroD
+
+__all__ = [
+    "FOC_STRATEGIES",
+    "CurrentLoop",
+    "CurrentPI",
+    "FOCController",
+    "FOCParams",
+    "current_pi",
+]
+
+NAN = math.nan
+TWO_PI = 2.0 * math.pi
+
+#: strategy name → MTPA law; registry order is the ``strategy`` index in commands
+FOC_STRATEGIES: Mapping[str, type] = {
+    "foc_zero_d": ZeroD,
+    "foc_formula": FormulaMTPA,
+    "foc_injection": InjectionMTPA,
+}
+
+
+@dataclass(frozen=True)
+class FOCParams:
+    """Controller settings of field-oriented control with MTPA (paper 002).
+
+    ``motor`` is the controller's own model (may differ from the plant's: parameter mismatch);
+    ``foc_injection`` uses its R_s and ψ_f (the power and the gradient's scale) but not L_d, L_q.
+    """
+
+    motor: PMSM
+    strategy: str = choice("MTPA law; switchable at run time", tuple(FOC_STRATEGIES))
+    current_bandwidth_hz: float = quantity(
+        "current-loop bandwidth (first order on the nominal model)", "Hz", gt=0, default=300.0
+    )
+    injection_amplitude: float = quantity(
+        "dither amplitude A of the current angle (foc_injection)", "rad", ge=0, le=0.5, default=0.05
+    )
+    injection_hz: float = quantity(
+        "dither frequency f_h; 1/(f_h·Ts) must be a whole number of samples M",
+        "Hz",
+        gt=0,
+        default=500.0,
+    )
+    injection_gain: float = quantity(
+        "integrator gain of the angle per unit of normalised gradient d|T|/dθ / |T|",
+        "rad/s",
+        ge=0,
+        default=20.0,
+    )
+    injection_lowpass_hz: float = quantity(
+        "low-pass cutoff of the demodulated gradient", "Hz", gt=0, default=20.0
+    )
+    injection_form: str = choice(
+        "corrected (default) or as_printed (paper 002 eq 16, 19: biased; to show it)",
+        INJECTION_FORMS,
+        default="corrected",
+    )
+    injection_min_speed: float = quantity(
+        "speed below which the angle holds (the power carries ω_m·T)", "rad/s", ge=0, default=5.0
+    )
+    max_current_angle: float = quantity(
+        "bound of the injection's operating angle θ0", "rad", gt=0, le=1.5, default=0.8
+    )
+    injection_observer_hz: float = quantity(
+        "how fast the injection's flux observer follows the voltage balance",
+        "Hz",
+        gt=0,
+        default=5.0,
+    )
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
+@dataclass(frozen=True)
+class CurrentPI:
+    """Gains of one axis: u = kp·e + I, I += ki·e per step (see the module's text)."""
+
+    kp: float  #: V/A
+    ki: float  #: V/A per step
+    pole: float  #: a = e^{-R_s Ts/L}: the open-loop pole the PI zero cancels
+    gain: float  #: K = 1 - e^{-2π f_c Ts}: the closed loop's step per period
+
+
+def current_pi(*, r_s: float, l_s: float, ts: float, bandwidth_hz: float) -> CurrentPI:
+    """Pole-cancelling discrete PI of an R-L axis (R_s in Ω, L in H, Ts in s) for a first-order
+    closed loop at the bandwidth (Hz)."""
+    a = math.exp(-r_s * ts / l_s)
+    b = (1.0 - a) / r_s
+    k = 1.0 - math.exp(-TWO_PI * bandwidth_hz * ts)
+    return CurrentPI(kp=k / b, ki=k * (1.0 - a) / b, pole=a, gain=k)
+
+
+class CurrentLoop:
+    """The dq current loop: PI per axis (see :func:`current_pi`) with decoupling, the voltage
+    limited to ``linear_limit(u_dc)`` with clamping anti-windup. The decoupling terms
+    -ω_e L_q i_q and ω_e (L_d i_d + ψ_f) use the current the closed loop will have at the middle
+    of the period the voltage is applied over, i + K/2·(i* - i): with the sampled current
+    instead, the coupling left over lets the d and q responses differ, so a rotating reference
+    makes the current's amplitude ripple."""
+
+    def __init__(self, motor: PMSM, *, ts: float, bandwidth_hz: float) -> None:
+        self.l_d, self.l_q, self.psi_f = motor.l_d, motor.l_q, motor.psi_f
+        self.d = current_pi(r_s=motor.r_s, l_s=motor.l_d, ts=ts, bandwidth_hz=bandwidth_hz)
+        self.q = current_pi(r_s=motor.r_s, l_s=motor.l_q, ts=ts, bandwidth_hz=bandwidth_hz)
+        self.integral = 0j  #: the integrators, V (d + j·q)
+
+    def voltage(self, i_ref: complex, i_dq: complex, w_e: float, u_max: float) -> complex:
+        """u_dq (V) for the coming period from the reference and measured currents (A), the
+        electrical speed (rad/s) and the voltage limit (V)."""
+        pd, pq = self.d, self.q
+        e = i_ref - i_dq
+        i_m = i_dq + complex(0.5 * pd.gain * e.real, 0.5 * pq.gain * e.imag)
+        u = complex(
+            pd.kp * e.real + self.integral.real - w_e * self.l_q * i_m.imag,
+            pq.kp * e.imag + self.integral.imag + w_e * (self.l_d * i_m.real + self.psi_f),
+        )
+        mag = abs(u)
+        if mag > u_max:
+            return u * (u_max / mag)  # limited: the integrators hold (clamping anti-windup)
+        self.integral += complex(pd.ki * e.real, pq.ki * e.imag)
+        return u
+
+
+class FOCController(Controller):
+    """Field-oriented control of the PMSM: ``step(state k, reference k) -> command k``."""
+
+    family = "foc_pmsm"
+    machine = Machine.PMSM
+    params_type = FOCParams
+    strategies = FOC_STRATEGIES
+
+    def __init__(self, params: FOCParams, *, ts: float) -> None:
+        m = params.motor
+        samples = 1.0 / (params.injection_hz * ts)
+        if abs(samples - round(samples)) > 1e-6 or round(samples) < 4:
+            raise ConfigError(
+                f"torque_controller.injection_hz: {params.injection_hz:g} Hz gives "
+                f"{samples:.4g} samples per dither period at Ts = {ts:g} s; it must be a whole "
+                f"number >= 4 (e.g. {1.0 / (round(max(samples, 4)) * ts):g} Hz)"
+            )
+        self._ctx = MTPAContext(
+            ts=ts,
+            p=m.p,
+            r_s=m.r_s,
+            l_d=m.l_d,
+            l_q=m.l_q,
+            psi_f=m.psi_f,
+            amplitude=params.injection_amplitude,
+            samples=round(samples),
+            gain=params.injection_gain,
+            lowpass_hz=params.injection_lowpass_hz,
+            form=params.injection_form,
+            min_speed=params.injection_min_speed,
+            max_angle=params.max_current_angle,
+            observer_hz=params.injection_observer_hz,
+        )
+        self.loop = CurrentLoop(m, ts=ts, bandwidth_hz=params.current_bandwidth_hz)
+        self._k_t = 1.5 * m.p * m.psi_f
+        self.theta = 0.0  #: current angle in use, rad
+        self.u_dq = 0j  #: the voltage applied over the last period, rotor frame, V
+        self.u_ab = 0j  #: the same in αβ, V
+        self._theta_e_prev: float | None = None
+        self.i_ref = 0j
+        self._i_prev: complex | None = None
+        self._i_dq = 0j
+        self.est_torque = self.est_flux = self.est_flux_angle = 0.0
+        super().__init__(params, ts=ts)
+
+    def set_strategy(self, name: str) -> None:
+        super().set_strategy(name)
+        self.strategy.start(self.theta, self._ctx)  # bumpless: the new law starts where we are
+
+    def _observe(self, state: State) -> None:
+        c = self._ctx
+        the = state.theta_e
+        i_dq = park(complex(state.i_alpha, state.i_beta), the)
+        self._i_dq = i_dq
+        psi = complex(c.l_d * i_dq.real + c.psi_f, c.l_q * i_dq.imag)
+        self.est_torque = 1.5 * c.p * (psi.real * i_dq.imag - psi.imag * i_dq.real)
+        self.est_flux = abs(psi)
+        self.est_flux_angle = (the + cmath.phase(psi)) % TWO_PI
+
+    def _decide(self, state: State, ref: Reference) -> complex:
+        c = self._ctx
+        t_ref = ref.torque_ref
+        sign = 1.0 if t_ref >= 0.0 else -1.0
+        i_s = abs(t_ref) / self._k_t
+        i_dq = self._i_dq
+        i_prev = i_dq if self._i_prev is None else self._i_prev
+        the_prev = state.theta_e if self._theta_e_prev is None else self._theta_e_prev
+        x = MTPAInputs(
+            int(state.k),
+            i_s,
+            sign,
+            i_dq,
+            i_prev,
+            self.u_dq,
+            self.u_ab,
+            state.theta_e,
+            the_prev,
+            state.omega_m,
+        )
+        theta = self.strategy.angle(x, c)
+        i_ref = complex(-i_s * math.sin(theta), sign * i_s * math.cos(theta))
+        w_e = c.p * state.omega_m
+        u = self.loop.voltage(i_ref, i_dq, w_e, linear_limit(state.u_dc))
+        self.u_dq = u
+        self._i_prev = i_dq
+        self._theta_e_prev = state.theta_e
+        self.theta = theta
+        self.i_ref = i_ref
+        # αβ at the rotor angle of the period's middle, where its volt-seconds act on average
+        self.u_ab = inverse_park(u, state.theta_e + 0.5 * w_e * self.ts)
+        return self.u_ab
+
+    def _command(self, u_ab: complex, state: State, compute_ns: float) -> Command:
+        mod = svpwm(u_ab, state.u_dc)
+        self.u_ab = mod.applied
+        gradient = getattr(self.strategy, "gradient", NAN)
+        pulses: PhasePulses = mod.pulses
+        return self.command(
+            state,
+            pulses,
+            (
+                NAN,  # vector: no finite-control-set decision
+                NAN,  # duty
+                NAN,  # t_u
+                0.0,  # cal: no vector predicted
+                self.est_torque,
+                self.est_flux,
+                self.est_flux_angle,
+                self.theta,
+                self.i_ref.real,
+                self.i_ref.imag,
+                gradient,
+            ),
+            compute_ns,
+        )
