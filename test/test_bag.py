@@ -12,7 +12,7 @@ from predictive_drive.bag import BagWriter, read_bag
 from predictive_drive.config import load_scenario
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import BagError
-from predictive_drive.interface import TOPICS
+from predictive_drive.interface import BAG_TOPICS, TOPICS
 
 pytestmark = pytest.mark.core
 
@@ -60,7 +60,7 @@ def test_mcap_follows_rosbag2_conventions(recorded):
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
     assert header.profile == "ros2"
     schemas = {s.name: s for s in summary.schemas.values()}
-    for t in TOPICS.values():
+    for t in BAG_TOPICS.values():
         assert schemas[t.type].encoding == "ros2msg"
     assert (
         "MSG: std_msgs/MultiArrayDimension"
@@ -89,7 +89,7 @@ def test_independent_reader_rosbags_decodes_every_topic(recorded):
         for conn, _t, raw in reader.messages():
             msg = reader.deserialize(raw, conn.msgtype)
             seen.setdefault(conn.topic, msg)
-    assert set(seen) == {t.name for t in TOPICS.values()}
+    assert set(seen) == {t.name for t in BAG_TOPICS.values()}
     st = seen["/drive/state"]
     assert st.layout.dim[0].label.startswith("k,t,i_alpha,i_beta")
     assert seen["/drive/joint_states"].name == ["drive_shaft"]
@@ -125,7 +125,7 @@ def test_truncated_file_reads_up_to_the_cut(recorded, tmp_path):
 
 def test_existing_bag_directory_is_refused(recorded):
     out, _, _ = recorded
-    with pytest.raises(BagError, match="already exists"):
+    with pytest.raises(BagError, match="a bag of that name exists"):
         BagWriter(out, info={})
 
 

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .api import analyze, bench, report, reproduce, run
+from .api import analyze, bench, repair, report, reproduce, run
 from .errors import PredictiveDriveError
 from .reports.papers import MTPA_STUDIES, PAPER_TABLES
 from .ros.placement import AFFINITIES, SCHED_POLICIES
@@ -291,6 +291,20 @@ def cmd_bench(a: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_repair(a: argparse.Namespace) -> int:
+    d = repair.repair(a.bag)
+    if a.json:
+        print(dumps(d))
+    elif d["repaired"]:
+        print(
+            f"repaired {d['bag']}: {d['messages']} messages, {d['steps']} whole steps; the "
+            f"original file is kept as {d['original']}"
+        )
+    else:
+        print(f"{d['bag']} is intact ({d['messages']} messages, {d['steps']} steps): left as it is")
+    return 0
+
+
 def cmd_param(a: argparse.Namespace) -> int:
     from .ros.params import param
 
@@ -388,6 +402,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     an.add_argument("--json", action="store_true")
     an.set_defaults(func=cmd_analyze)
+
+    rr = sub.add_parser(
+        "repair",
+        help="rebuild a recording whose writer was killed (index, footer, metadata.yaml); "
+        "the original file is kept as <name>.mcap.orig",
+    )
+    rr.add_argument("bag", help="bag directory (or its .mcap file)")
+    rr.add_argument("--json", action="store_true")
+    rr.set_defaults(func=cmd_repair)
 
     b = sub.add_parser("bench", help="throughput figures of this machine")
     b.add_argument("--repeats", type=int, default=5)

@@ -24,11 +24,14 @@ from .errors import BagError
 
 __all__ = [
     "CLOCK_PERIOD",
+    "BAG_TOPICS",
     "CODECS",
     "LAUNCHER_NODE",
     "LOCKSTEP_QOS",
     "NAMESPACE",
     "NODES",
+    "RECORDED_EVERY",
+    "RECORDING_WINDOW",
     "RECORD_TOPICS",
     "TOPICS",
     "Qos",
@@ -56,6 +59,8 @@ def node_name(name: str) -> str:
 
 
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
+#: labels of /drive/recorded: every step up to k is recorded, k·Ts is t, messages written so far
+RECORDED_FIELDS = ("k", "t", "messages")
 
 
 @dataclass(frozen=True)
@@ -96,6 +101,7 @@ class Topic:
     type: str  #: ROS type name, pkg/msg/Type
     qos: Qos
     fields: tuple[str, ...] = ()  #: labels of a Float64MultiArray record topic
+    recorded: bool = True  #: written into the run's bag
 
 
 TOPICS: dict[str, Topic] = {
@@ -107,11 +113,21 @@ TOPICS: dict[str, Topic] = {
     "joint_states": Topic(f"{NAMESPACE}/joint_states", "sensor_msgs/msg/JointState", TOOLS_QOS),
     "clock": Topic("/clock", "rosgraph_msgs/msg/Clock", TOOLS_QOS),
     "diagnostics": Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", TOOLS_QOS),
+    # the recorder's progress: every step up to k is in the bag (the plant's back-pressure)
+    "recorded": Topic(
+        f"{NAMESPACE}/recorded", FLOAT64_MULTI_ARRAY, TOOLS_QOS, RECORDED_FIELDS, recorded=False
+    ),
 }
+#: the topics a run's bag holds
+BAG_TOPICS = {key: t for key, t in TOPICS.items() if t.recorded}
 #: record name (core.trace.RECORDS) → topic key, for the three per-step signal topics
 RECORD_TOPICS = {"state": "state", "reference": "reference", "command": "command"}
 #: decimation of /clock and /drive/joint_states: one message every this many steps' worth of time
 CLOCK_PERIOD = 1e-3  #: s of simulated time (1 kHz)
+#: back-pressure: the plant runs at most this many steps ahead of what the recorder has written
+RECORDING_WINDOW = 1000
+#: the recorder says how far it has written (/drive/recorded) every this many steps
+RECORDED_EVERY = 100
 
 
 # --- CDR (XCDR1, little endian) ---------------------------------------------------------------
@@ -207,7 +223,7 @@ class MultiArrayCodec:
 
 
 CODECS: dict[str, MultiArrayCodec] = {
-    key: MultiArrayCodec(TOPICS[key].fields) for key in RECORD_TOPICS
+    key: MultiArrayCodec(TOPICS[key].fields) for key in (*RECORD_TOPICS, "recorded")
 }
 
 

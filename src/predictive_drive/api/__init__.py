@@ -1,9 +1,10 @@
 """The command line's logic as plain keyword-only functions, one module per verb (the ``cli``
 module only parses and prints): :mod:`.run`, :mod:`.report`, :mod:`.reproduce`, :mod:`.analyze`,
-:mod:`.bench`, and :mod:`.controller_replay` (recorded inputs fed again through a controller).
+:mod:`.bench`, :mod:`.repair`, and :mod:`.controller_replay` (recorded inputs fed again through a
+controller).
 
 Every engine writes a bag through the same recorder code, and every figure printed for a run is
 computed from that bag, so ``report`` on the bag always agrees with what ``run`` printed.
 """
 
-__all__ = ["analyze", "bench", "controller_replay", "report", "reproduce", "run"]
+__all__ = ["analyze", "bench", "controller_replay", "repair", "report", "reproduce", "run"]

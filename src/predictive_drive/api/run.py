@@ -55,11 +55,15 @@ def switch_steps(sc: Scenario, switches: Sequence[tuple[float, str]]) -> list[tu
     a time outside the run."""
     names = strategy_names(sc.family)
     out = []
-    for t, name in switches:
+    in_force = sc.strategy
+    for t, name in sorted(switches):
         if name not in names:
             raise ConfigError(f"--switch {t}:{name}: unknown strategy; valid: {', '.join(names)}")
         if not (0 <= t < sc.run.duration):
             raise ConfigError(f"--switch {t}:{name}: time must lie in [0, {sc.run.duration}) s")
+        if name == in_force:
+            raise ConfigError(f"--switch {t}:{name}: {name} is already the strategy then")
+        in_force = name
         out.append((step_index(t, sc.ts), name))
     return out
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -17,11 +18,15 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
+import yaml
+
+from ..bag import LOGS_DIR, bag_status, check_new_bag
 from ..core.scenario import Scenario
+from ..core.timebase import step_index
 from ..errors import GraphError
-from ..interface import LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
+from ..interface import CLOCK_PERIOD, LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
 from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
 
 __all__ = ["isolated_domain", "run_graph", "stop_processes"]
@@ -34,50 +39,88 @@ LOCK_DIR = Path(tempfile.gettempdir()) / "predictive_drive_domains"
 
 @contextmanager
 def isolated_domain() -> Iterator[int]:
-    """A ROS_DOMAIN_ID no other predictive_drive run on this machine holds (flock'ed)."""
-    LOCK_DIR.mkdir(exist_ok=True)
+    """A ROS_DOMAIN_ID no other predictive_drive run on this machine holds (flock'ed). The lock
+    folder and files are open to every user (mode 1777 and 0666), so a second user's runs take
+    other domains instead of failing on a lock file the first one created."""
+    if not LOCK_DIR.is_dir():
+        LOCK_DIR.mkdir(exist_ok=True)
+        os.chmod(LOCK_DIR, 0o1777)  # mkdir's mode is cut by the umask
     start = os.getpid() % len(DOMAIN_RANGE)
     for i in range(len(DOMAIN_RANGE)):
         d = DOMAIN_RANGE[(start + i) % len(DOMAIN_RANGE)]
-        f = (LOCK_DIR / f"{d}.lock").open("w")
+        path = LOCK_DIR / f"{d}.lock"
         try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fd = os.open(path, os.O_RDONLY | os.O_CREAT, 0o666)  # flock needs no write access
+        except PermissionError:
+            continue  # another user's file we cannot even read: their domain
+        try:
+            os.fchmod(fd, 0o666)
+        except PermissionError:
+            pass  # another user's file: readable is enough
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            f.close()
+            os.close(fd)
             continue
         try:
             yield d
         finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
-            f.close()
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            os.close(fd)
         return
     raise GraphError("no free ROS domain id: 100 predictive_drive runs at once?")
 
 
-def stop_processes(procs: dict[str, subprocess.Popen[bytes]], *, grace: float = 5.0) -> None:
-    """End every still-running child by PID: SIGINT, then SIGTERM, then SIGKILL, each with a timeout."""
+#: s a child may take to close once asked (messages in flight, the bag), before SIGTERM
+STOP_GRACE = 45.0
+#: an rclpy log line: ``[ERROR] [<wall time>] [<logger>]: <message>``
+_ERROR_LINE = re.compile(r"^\[(?:ERROR|FATAL)\] \[(\d+\.\d+)\] \[[^\]]*\]: (.*)$", re.MULTILINE)
+
+
+def _stopped(pid: int) -> bool:
+    """The process is stopped by a signal (SIGSTOP, a debugger): it cannot close until resumed."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in ("T", "t")
+    except (OSError, IndexError):
+        return False
+
+
+def stop_processes(procs: dict[str, subprocess.Popen[bytes]], *, grace: float = STOP_GRACE) -> None:
+    """End every still-running child by PID: SIGINT (it finishes what is in flight and closes),
+    then SIGTERM, then SIGKILL, each with a timeout; says so when it waits for a stopped one."""
     for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
-        alive = [p for p in procs.values() if p.poll() is None]
+        alive = {n: p for n, p in procs.items() if p.poll() is None}
         if not alive:
             return
-        for p in alive:
+        for p in alive.values():
             try:
                 os.kill(p.pid, sig)
             except ProcessLookupError:
                 pass
         deadline = time.monotonic() + wait
-        for p in alive:
-            try:
-                p.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
+        said = set()
+        while time.monotonic() < deadline and any(p.poll() is None for p in alive.values()):
+            for n, p in alive.items():
+                if n not in said and p.poll() is None and _stopped(p.pid):
+                    said.add(n)
+                    print(
+                        f"predictive-drive: {n} (pid {p.pid}) is stopped by a signal; waiting up "
+                        f"to {wait:.0f} s for it to go on and close",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+            time.sleep(0.05)
 
 
-def _tail(f: IO[bytes], n: int = 12) -> str:
-    f.flush()
-    f.seek(0)
-    lines = f.read().decode(errors="replace").strip().splitlines()
+def _tail(path: Path, n: int = 12) -> str:
+    lines = path.read_text(errors="replace").strip().splitlines() if path.exists() else []
     return "\n".join("    " + line for line in lines[-n:])
+
+
+def _first_error(path: Path) -> tuple[float, str] | None:
+    """(wall time, message) of the first error a node logged, if it logged one."""
+    found = _ERROR_LINE.search(path.read_text(errors="replace")) if path.exists() else None
+    return (float(found.group(1)), found.group(2)) if found else None
 
 
 def run_graph(
@@ -91,12 +134,14 @@ def run_graph(
     affinity: str = "paired",
     sched: str = "batch",
 ) -> None:
-    """Run ``sc`` through the graph and record it to ``bag``; GraphError names a failed node.
-    ``affinity`` places the separate node processes on CPUs (see :func:`cpu_plan`) and ``sched``
-    is their threads' scheduling policy (:data:`SCHED_POLICIES`); the composed engine runs in
-    this process and is left as it is."""
+    """Run ``sc`` through the graph and record it to ``bag``; GraphError names the node that
+    failed first and says what state the bag is in. The node logs stay with the bag
+    (``<bag>/logs/``). ``affinity`` places the separate node processes on CPUs (see
+    :func:`cpu_plan`) and ``sched`` is their threads' scheduling policy
+    (:data:`SCHED_POLICIES`); the composed engine runs in one process and is left as it is."""
     if sched not in SCHED_POLICIES:
         raise GraphError(f"--sched: {sched!r} is not one of {', '.join(SCHED_POLICIES)}")
+    bag = check_new_bag(bag).resolve()
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
     # node-specific entries beat wildcard ones and later files beat earlier ones, so the command
@@ -104,23 +149,29 @@ def run_graph(
     overrides = {node_name(n): {"ros__parameters": dict(shared)} for n in NODES}
     overrides[node_name("torque_controller")]["ros__parameters"]["strategy"] = sc.strategy
     overrides[node_name("metrics_logger")]["ros__parameters"].update(
-        strategy=sc.strategy, bag=str(bag.resolve()), scenario_file=source
+        strategy=sc.strategy,
+        bag=str(bag),
+        scenario_file=source,
+        engine="composed" if composed else "ros",
     )
     # the launcher follows /clock for progress and switches: step 0 waits for it too
     watching = bool(switches) or progress is not None
     overrides[node_name("plant")]["ros__parameters"]["await_launcher"] = watching
-    with isolated_domain() as domain, tempfile.TemporaryDirectory() as logs:
-        import yaml
-
-        override_file = Path(logs) / "overrides.yaml"
-        override_file.write_text(yaml.safe_dump(overrides))
-        args = ["--ros-args", "--params-file", source, "--params-file", str(override_file)]
+    if switches:  # each lands exactly at its step: the plant waits there for the controller
+        steps = sorted(step_index(t, sc.ts) for t, _ in switches)
+        for n in ("plant", "torque_controller"):
+            overrides[node_name(n)]["ros__parameters"]["switch_steps"] = list(steps)
+    logs = bag / LOGS_DIR
+    logs.mkdir(parents=True, exist_ok=True)
+    override_file = logs / "overrides.yaml"
+    override_file.write_text(yaml.safe_dump(overrides))
+    args = ["--ros-args", "--params-file", source, "--params-file", str(override_file)]
+    with isolated_domain() as domain:
         env = ros_env(domain)
         plan = {} if composed else cpu_plan(affinity)
         if not composed:
             env[SCHED_ENV] = sched
         procs: dict[str, subprocess.Popen[bytes]] = {}
-        outs: dict[str, IO[bytes]] = {}
         # the launcher's own node: the plant waits for its /clock subscription before step 0
         watcher = _ClockWatcher(domain, sc, switches, progress) if watching else None
         commands = (
@@ -130,15 +181,15 @@ def run_graph(
         )
         try:
             for name, cmd in commands.items():
-                outs[name] = open(Path(logs) / f"{name}.log", "w+b")  # noqa: SIM115
-                procs[name] = subprocess.Popen(
-                    [sys.executable, "-m", *cmd],
-                    env={**env, CPUS_ENV: plan[name]} if name in plan else env,
-                    stdout=outs[name],
-                    stderr=subprocess.STDOUT,
-                    stdin=subprocess.DEVNULL,
-                    start_new_session=True,
-                )
+                with (logs / f"{name}.log").open("wb") as out:  # the child keeps its own fd
+                    procs[name] = subprocess.Popen(
+                        [sys.executable, "-m", *cmd],
+                        env={**env, CPUS_ENV: plan[name]} if name in plan else env,
+                        stdout=out,
+                        stderr=subprocess.STDOUT,
+                        stdin=subprocess.DEVNULL,
+                        start_new_session=True,
+                    )
             print(
                 f"predictive-drive: graph on ROS_DOMAIN_ID={domain}: "
                 + ", ".join(
@@ -149,44 +200,85 @@ def run_graph(
                 file=sys.stderr,
                 flush=True,
             )
-            _watch(procs, outs, watcher)
+            _watch(procs, logs, watcher, bag)
         finally:
             stop_processes(procs)
             if watcher is not None:
                 watcher.close()
-            for f in outs.values():
-                f.close()
 
 
 def _watch(
     procs: dict[str, subprocess.Popen[bytes]],
-    outs: dict[str, IO[bytes]],
+    logs: Path,
     watcher: _ClockWatcher | None,
+    bag: Path,
 ) -> None:
-    """Wait for the children; follow /clock for progress and timed strategy switches."""
+    """Wait for the children; follow /clock for progress and timed strategy switches. When one
+    fails, stop the others (they finish what is in flight and the logger closes the bag), then
+    report the node whose error came first in time, and the bag's state."""
     while True:
         if watcher is not None:
             watcher.spin(0.05)
         else:
             time.sleep(0.05)
         codes = {n: p.poll() for n, p in procs.items()}
-        failed = {n: c for n, c in codes.items() if c not in (None, 0)}
+        failed = {n for n, c in codes.items() if c not in (None, 0)}
         if failed:
-            name, code = next(iter(failed.items()))
-            how = f"was killed by signal {-code}" if code < 0 else f"exited with status {code}"
+            seen = time.time()
             stop_processes(procs)
-            raise GraphError(
-                f"node {name} (pid {procs[name].pid}) {how}; the run was stopped and the bag "
-                f"closed.\n  {name} said:\n{_tail(outs[name])}"
-            )
+            raise GraphError(_failure_report(procs, logs, bag, seen, failed))
         if all(c == 0 for c in codes.values()):
             if watcher is not None and (errors := watcher.final_errors()):
                 raise GraphError("; ".join(errors))
             return
 
 
+def _failure_report(
+    procs: dict[str, subprocess.Popen[bytes]],
+    logs: Path,
+    bag: Path,
+    seen: float,
+    failed: set[str],
+) -> str:
+    """Who failed first, how each ended, what it said, and the bag's state. A node failed when it
+    had ended (``failed``) or logged an error before the launcher saw the first end (``seen``,
+    wall time); the first is the one whose error came first, a node that ended without a word
+    counting as of ``seen``."""
+    ends = {}
+    for name, p in procs.items():
+        code = p.returncode
+        if code in (None, 0):
+            continue
+        err = _first_error(logs / f"{name}.log")
+        when = err[0] if err else seen
+        if name in failed or when < seen:
+            ends[name] = (when, code)
+    first = min(ends, key=lambda n: ends[n][0])
+    code = ends[first][1]
+    how = f"was killed by signal {-code}" if code < 0 else f"exited with status {code}"
+    others = ", ".join(
+        f"{n} {'killed by signal ' + str(-c) if c < 0 else 'status ' + str(c)}"
+        for n, p in procs.items()
+        if n != first and (c := p.returncode) not in (None, 0)
+    )
+    lines = [
+        f"node {first} (pid {procs[first].pid}) failed first: it {how}; the run was stopped"
+        + (f" (then: {others})" if others else ""),
+        bag_status(bag).describe() + f"; node logs in {logs}",
+        f"  {first} said:",
+        _tail(logs / f"{first}.log"),
+    ]
+    return "\n".join(lines)
+
+
 class _ClockWatcher:
-    """A small node of the launcher's own: /clock → progress, and parameter-service switches."""
+    """A small node of the launcher's own: /clock → progress, and parameter-service switches.
+
+    Switches go out one at a time, in order, each once /clock is within one tick of its time
+    (the plant and the controller hold it to its exact step, see ``switch_steps``); a request
+    unanswered after :data:`~.params.RESEND_AFTER` s is sent again (a request made just after
+    discovery can be lost), and the next switch waits for the answer to the one before, so a
+    late answer can never undo a later switch."""
 
     def __init__(
         self,
@@ -210,7 +302,8 @@ class _ClockWatcher:
         self.progress = progress
         self.pending = sorted(switches)
         self.switch_errors: list[str] = []
-        self._futures: list[tuple[str, Any]] = []
+        self._inflight: tuple[str, str, Any, float] | None = None  # what, strategy, future, sent
+        self._sim_time = -1.0
         self.client = AsyncParameterClient(self.node, node_name("torque_controller"))
         self._clock_sub: Any = None  # see spin()
 
@@ -225,36 +318,55 @@ class _ClockWatcher:
 
     def on_clock(self, msg: Any) -> None:
         t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        self._sim_time = t
         if self.progress is not None:
             self.progress(round(t / self.ts))
-        while self.pending and self.pending[0][0] <= t:
-            at, name = self.pending.pop(0)
-            from rclpy.parameter import Parameter
+        self._send()
 
-            fut = self.client.set_parameters([Parameter("strategy", Parameter.Type.STRING, name)])
-            self._futures.append((f"switch at {at} s to {name}", fut))
+    def _request(self, what: str, name: str) -> None:
+        from rclpy.parameter import Parameter
+
+        fut = self.client.set_parameters([Parameter("strategy", Parameter.Type.STRING, name)])
+        self._inflight = (what, name, fut, time.monotonic())
+
+    def _send(self) -> None:
+        # the plant waits at the switch's step for it, so the last /clock before that step
+        # (one CLOCK_PERIOD before it at most) may be all there is to see
+        if (
+            self._inflight is None
+            and self.pending
+            and self.pending[0][0] - CLOCK_PERIOD <= self._sim_time + 1e-12
+        ):
+            at, name = self.pending.pop(0)
+            self._request(f"switch at {at} s to {name}", name)
 
     def spin(self, timeout: float) -> None:
+        from .params import RESEND_AFTER
+
         # /clock only once a timed switch can go out at once: the plant holds step 0 until then
         if self._clock_sub is None and (not self.pending or self.client.services_are_ready()):
             self._follow_clock()
         self.ex.spin_once(timeout_sec=timeout)
-        for what, fut in list(self._futures):
+        if self._inflight is not None:
+            what, name, fut, sent = self._inflight
             if fut.done():
-                self._futures.remove((what, fut))
-                res = fut.result()
-                for r in getattr(res, "results", []):
+                self._inflight = None
+                for r in getattr(fut.result(), "results", []):
                     if not r.successful:
                         self.switch_errors.append(f"{what} rejected: {r.reason}")
+            elif time.monotonic() - sent > RESEND_AFTER:
+                self._request(what, name)  # the same value again: setting it twice is harmless
+        self._send()
 
     def final_errors(self) -> list[str]:
         """After the run: rejected switches, and switches unanswered or never sent."""
         self.spin(0.0)  # a last answer may be waiting
+        unanswered = [] if self._inflight is None else [self._inflight[0]]
         return (
             self.switch_errors
             + [
                 f"{what}: no answer from {node_name('torque_controller')} before the run ended"
-                for what, _ in self._futures
+                for what in unanswered
             ]
             + [f"switch at {at} s to {name}: never sent" for at, name in self.pending]
         )

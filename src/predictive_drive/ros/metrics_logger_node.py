@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import struct
 import sys
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,7 +16,7 @@ from ..bag import BagWriter
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice
-from ..interface import TOPICS
+from ..interface import CODECS, RECORDED_EVERY, TOPICS
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import WatchedNode, run_main
 
@@ -35,6 +37,9 @@ class RecordingParams:
     scenario_file: str = choice(
         "scenario file to store in the bag (default config/<scenario>.yaml)", default=""
     )
+    engine: str = choice(
+        "what runs the graph, for the bag's metadata", ("ros", "composed"), default="ros"
+    )
 
 
 class MetricsLoggerNode(WatchedNode):
@@ -53,8 +58,13 @@ class MetricsLoggerNode(WatchedNode):
         )
         self.n = run.steps
         out = Path(extra.bag) if extra.bag else default_bag_dir(sc)
-        self.writer = BagWriter(out, info=bag_info(sc, "ros"))
+        self.writer = BagWriter(out, info=bag_info(sc, extra.engine))
         self.pub_diag = self.publisher("diagnostics")
+        self.pub_recorded = self.publisher("recorded")
+        self._last = {"state": -1, "reference": -1, "command": -1}  #: last k written, by record
+        self._said = -1  #: the last step /drive/recorded announced
+        self._ts = run.ts
+        self._last_message = time.monotonic()
         self.rec = RunRecorder(
             self.writer,
             ts=run.ts,
@@ -96,9 +106,28 @@ class MetricsLoggerNode(WatchedNode):
 
     def on_record(self, rec: str, data: bytes) -> None:
         self.progressed()
-        self.rec.record_raw(rec, data)
+        self._last_message = time.monotonic()
+        row = self.rec.record_raw(rec, data)
         self._counts[rec] += 1
+        self._last[rec] = int(row[0])
+        through = min(self._last.values())
+        if through >= self._said + RECORDED_EVERY or through >= self.n - 1:
+            self._said = through
+            # the plant runs ahead of this by at most RECORDING_WINDOW steps (back-pressure)
+            progress = (float(through), through * self._ts, float(self.writer.message_count))
+            self.pub_recorded.publish(CODECS["recorded"].encode(progress))
         self._maybe_done()
+
+    def finish(self, spin: Callable[[float], None], deadline: float) -> None:
+        """Take what is still in flight before the bag closes: until every step has come, or
+        nothing has for a second (the peers keep their publishers until it is acknowledged)."""
+        start = time.monotonic()
+        while (
+            self._counts != self._need
+            and time.monotonic() < deadline
+            and time.monotonic() - max(start, self._last_message) < 1.0
+        ):
+            spin(0.05)
 
     def _maybe_done(self) -> None:
         if self._counts == self._need:
@@ -106,6 +135,7 @@ class MetricsLoggerNode(WatchedNode):
             self.finished = True
 
     def on_tool(self, key: str, data: bytes) -> None:
+        self._last_message = time.monotonic()
         sec, nsec = struct.unpack_from("<iI", data, 4)  # header.stamp / clock, after the CDR header
         self.writer.write(key, sec * 1_000_000_000 + nsec, data)
         self._counts[key] += 1
@@ -114,7 +144,6 @@ class MetricsLoggerNode(WatchedNode):
     def fail(self, message: str) -> None:
         super().fail(message)
         self._publish_diagnostics("diagnostics", self.rec.error(message))
-        self.close()
 
     def close(self) -> None:
         if not self._closed:

@@ -9,6 +9,7 @@ import math
 import os
 import signal
 import sys
+import threading
 import time
 import typing
 from collections.abc import Callable, Collection, Iterator
@@ -18,9 +19,11 @@ from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 
 from ..config import build_section, section_class
 from ..core.fields import Quantity, check_fields, quantity, spec_of
@@ -41,8 +44,14 @@ __all__ = [
     "spin_nodes",
 ]
 
-#: s a closing process may take (bag summary, node and context teardown) before SIGALRM ends it
-CLOSE_TIMEOUT = 30
+#: s a closing process may take (messages in flight, bag summary, teardown) before SIGALRM ends it
+CLOSE_TIMEOUT = 60
+#: s the nodes may spend, once the run ends, on messages still in flight: publishers wait for
+#: their readers' acknowledgements, the logger takes what still arrives
+FINISH_TIMEOUT = 20.0
+#: set by SIGINT / SIGTERM: the node ends its run and closes (rclpy's own handlers are not
+#: installed: they would shut the context down before the logger has taken what is in flight)
+STOP = threading.Event()
 
 _INT64 = (-(2**63), 2**63 - 1)
 
@@ -114,6 +123,14 @@ class DriveNode(Node):
 
     def check(self) -> None:
         """Called by the spin loop at least every 0.1 s (watchdogs)."""
+
+    def finish(self, spin: Callable[[float], None], deadline: float) -> None:
+        """The run is over (done, failed or stopped): see the messages still in flight through,
+        until ``deadline`` (time.monotonic()). ``spin(t)`` runs the executor for up to t s."""
+
+    def resumed(self) -> None:
+        """This process did not run for a while (stopped by a signal, starved): the time its
+        watchdogs measured is not its peers' silence."""
 
     # -- parameters -------------------------------------------------------------------------
     def _where(self) -> str:
@@ -196,16 +213,28 @@ class DriveNode(Node):
 
 class WatchedNode(DriveNode):
     """A lock-step node that fails when the message it waits for does not come in time
-    (``startup_timeout`` before its first message, ``peer_timeout`` after)."""
+    (``startup_timeout`` before its first message, ``peer_timeout`` after). Its lock-step
+    publishers (``self.lockstep``) are kept until their readers have acknowledged every message
+    when the run ends, so a recorder that was behind still gets them."""
 
     def __init__(self, name: str, **kw: Any) -> None:
         super().__init__(name, **kw)
         self._last_progress = time.monotonic()
         self._started = False
+        self.lockstep: list[Any] = []
+
+    def finish(self, spin: Callable[[float], None], deadline: float) -> None:
+        for pub in self.lockstep:
+            left = deadline - time.monotonic()
+            if left > 0:
+                pub.wait_for_all_acked(Duration(seconds=left))
 
     def progressed(self) -> None:
         self._last_progress = time.monotonic()
         self._started = True
+
+    def resumed(self) -> None:
+        self._last_progress = time.monotonic()
 
     def check(self) -> None:
         if self.finished or self.failure:
@@ -228,13 +257,19 @@ def spin_main(
     bus: LocalBus | None = None,
 ) -> int:
     """Jazzy main pattern: init, ``make(bus)`` the nodes, spin them, close them however the run
-    ends (the logger closes its bag), shut down. Returns the process exit code."""
-    rclpy.init(args=args)
+    ends (the logger closes its bag), shut down. Returns the process exit code.
+
+    SIGINT and SIGTERM set :data:`STOP` (rclpy's handlers are not installed): the loop ends, the
+    nodes finish what is in flight (:meth:`DriveNode.finish`), close and go."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda _s, _f: STOP.set())
     nodes: list[DriveNode] = []
     code = 0
+    ex = executor()
     try:
         nodes = make(bus)
-        code = spin_nodes(nodes, bus)
+        code = spin_nodes(nodes, ex, bus)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 130
     except (ConfigError, GraphError) as e:
@@ -242,6 +277,9 @@ def spin_main(
         code = 2
     finally:
         with closing():
+            deadline = time.monotonic() + FINISH_TIMEOUT
+            for n in sorted(nodes, key=lambda n: not isinstance(n, WatchedNode)):
+                n.finish(lambda t: _spin(ex, bus, t), deadline)
             for n in nodes:
                 if n.failure:
                     print(n.failure, file=sys.stderr)
@@ -249,14 +287,14 @@ def spin_main(
                 if close is not None:
                     close()
                 n.destroy_node()
+            ex.shutdown(timeout_sec=1.0)
             rclpy.try_shutdown()
     return code
 
 
 @contextmanager
 def closing() -> Iterator[None]:
-    """The process is closing: a second SIGINT/SIGTERM (or one still pending after rclpy's own
-    handler shut the context down) must not raise KeyboardInterrupt in the middle of closing the
+    """The process is closing: a further SIGINT/SIGTERM must not interrupt the closing of the
     bag. The launcher still escalates to SIGKILL if closing hangs; without a launcher (or with
     one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -270,10 +308,22 @@ def closing() -> Iterator[None]:
 
 #: local deliveries between executor polls (~70 steps of the drive graph)
 _BATCH = 500
+#: s without a turn of the spin loop (which comes every 0.1 s at most) that mean this process
+#: was stopped or starved, not that its peers were silent
+RESUME_GAP = 2.0
 
 
-def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
-    """Spin until every node has finished or one fails; 0 on success, 1 on a node failure.
+def _spin(ex: Any, bus: LocalBus | None, timeout: float) -> None:
+    """One round of the loop: local deliveries (composed), then the executor."""
+    if bus is not None and bus.run(_BATCH):
+        ex.spin_once(timeout_sec=0.0)
+    else:
+        ex.spin_once(timeout_sec=timeout)
+
+
+def spin_nodes(nodes: list[DriveNode], ex: Any, bus: LocalBus | None = None) -> int:
+    """Spin until every node has finished or one fails; 0 on success, 1 on a node failure, 130
+    when stopped (:data:`STOP`).
 
     The executor runs in C++ until a node signals (finished / failed) or 0.1 s pass; then the
     watchdogs run. Every spin has a finite timeout (see :func:`executor`). With a ``bus``, its
@@ -282,7 +332,6 @@ def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
     """
     from rclpy.task import Future
 
-    ex = executor()
     done = Future()
 
     def notify() -> None:
@@ -293,23 +342,26 @@ def spin_nodes(nodes: list[DriveNode], bus: LocalBus | None = None) -> int:
         n.notify = notify
         ex.add_node(n)
     launcher = launcher_pid()
-    try:
-        while rclpy.ok():
-            if bus is not None and bus.run(_BATCH):
-                ex.spin_until_future_complete(done, timeout_sec=0.0)
-            else:
-                ex.spin_until_future_complete(done, timeout_sec=0.1)
+    last = time.monotonic()
+    while rclpy.ok() and not STOP.is_set():
+        if bus is not None and bus.run(_BATCH):
+            ex.spin_until_future_complete(done, timeout_sec=0.0)
+        else:
+            ex.spin_until_future_complete(done, timeout_sec=0.1)
+        now = time.monotonic()
+        if now - last > RESUME_GAP:  # this loop did not run: the process itself was held
             for n in nodes:
-                n.check()
-            if launcher and os.getppid() != launcher and not nodes[0].failure:
-                nodes[0].fail(f"the launcher (pid {launcher}) is gone; ending the run")
-            notify()
-            if any(n.failure for n in nodes):
-                return 1
-            if all(n.finished for n in nodes):
-                return 0
-    finally:
-        ex.shutdown(timeout_sec=1.0)
+                n.resumed()
+        last = now
+        for n in nodes:
+            n.check()
+        if launcher and os.getppid() != launcher and not nodes[0].failure:
+            nodes[0].fail(f"the launcher (pid {launcher}) is gone; ending the run")
+        notify()
+        if any(n.failure for n in nodes):
+            return 1
+        if all(n.finished for n in nodes):
+            return 0
     return 130
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import time
 from typing import Any
 
 import rclpy
@@ -10,11 +11,11 @@ from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
-from ..errors import GraphError
+from ..errors import ConfigError, GraphError
 from ..interface import node_name
 from .transport import executor
 
-__all__ = ["param"]
+__all__ = ["domain_id", "param"]
 
 
 def _value(text: str) -> Any:
@@ -23,31 +24,57 @@ def _value(text: str) -> Any:
     return yaml.safe_load(text)  # as `ros2 param set` does: 1 → int, 1.0 → float, x → str
 
 
+def domain_id() -> int:
+    """The environment's ROS_DOMAIN_ID (0 when unset); ConfigError when it is not one."""
+    text = os.environ.get("ROS_DOMAIN_ID", "0").strip() or "0"
+    try:
+        domain = int(text)
+    except ValueError:
+        domain = -1
+    if not 0 <= domain <= 232:
+        raise ConfigError(f"ROS_DOMAIN_ID={text!r}: expected a whole number from 0 to 232")
+    return domain
+
+
+#: s a request may wait for its answer before it is sent again: a request made just after the
+#: services were discovered can be lost (the server's reply writer has not matched the client's
+#: reader yet), so one lost answer must not cost the whole timeout
+RESEND_AFTER = 2.0
+
+
 def param(*, node: str, name: str, value: str | None = None, timeout: float = 10.0) -> Any:
     """Get (value None) or set a parameter on a running node; returns the value, or raises
-    GraphError with the node's reason when a set is rejected."""
+    GraphError with the node's reason when a set is rejected or the parameter does not exist."""
     node = node_name(node)
+    domain = domain_id()
     ctx = Context()
-    rclpy.init(context=ctx, domain_id=int(os.environ.get("ROS_DOMAIN_ID", "0")))
+    rclpy.init(context=ctx, domain_id=domain)
     me = rclpy.create_node("param_cli", context=ctx)
+    ex = executor(ctx)
     try:
-        ex = executor(ctx)
         ex.add_node(me)
         client = AsyncParameterClient(me, node)
         if not client.wait_for_services(timeout_sec=timeout):
             raise GraphError(
                 f"node {node} offers no parameter services (is it running, "
-                f"and is ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} its domain?)"
+                f"and is ROS_DOMAIN_ID={domain} its domain?)"
             )
-        if value is None:
-            fut = client.get_parameters([name])
-        else:
-            fut = client.set_parameters([Parameter(name, value=_value(value))])
-        ex.spin_until_future_complete(fut, timeout_sec=timeout)
-        if not fut.done():
-            raise GraphError(f"node {node} did not answer within {timeout} s")
+        deadline = time.monotonic() + timeout
+        while True:
+            if value is None:
+                fut = client.get_parameters([name])
+            else:
+                fut = client.set_parameters([Parameter(name, value=_value(value))])
+            left = deadline - time.monotonic()
+            ex.spin_until_future_complete(fut, timeout_sec=max(0.0, min(RESEND_AFTER, left)))
+            if fut.done():
+                break
+            if time.monotonic() >= deadline:
+                raise GraphError(f"node {node} did not answer within {timeout} s")
         res = fut.result()
         if value is None:
+            if not res.values or res.values[0].type == 0:  # PARAMETER_NOT_SET: undeclared
+                raise GraphError(f"node {node} has no parameter {name!r}; {_listing(client, ex)}")
             v = res.values[0]
             return Parameter.from_parameter_msg(type("P", (), {"name": name, "value": v})()).value
         r = res.results[0]
@@ -58,3 +85,11 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
         ex.shutdown(timeout_sec=1.0)
         me.destroy_node()
         rclpy.try_shutdown(context=ctx)
+
+
+def _listing(client: AsyncParameterClient, ex: Any) -> str:
+    fut = client.list_parameters()
+    ex.spin_until_future_complete(fut, timeout_sec=RESEND_AFTER)
+    if not fut.done():
+        return "its parameter list did not come"
+    return "its parameters: " + ", ".join(sorted(fut.result().result.names))

@@ -2,12 +2,18 @@
 --params-file config/<scenario>.yaml``).
 
 Lock-step (SPEC §5): publishes state k, applies command k for Ts, publishes state k+1; /clock and
-/drive/joint_states decimated to 1 kHz of simulated time.
+/drive/joint_states decimated to 1 kHz of simulated time. Back-pressure: it runs at most
+:data:`~predictive_drive.interface.RECORDING_WINDOW` steps ahead of what the recorder says it has
+written (/drive/recorded); a state beyond that is held until the recorder catches up, and a
+recorder silent for ``peer_timeout`` while the drive waits ends the run, named. Scheduled
+switches (``switch_steps``): state k waits until the torque controller has taken every switch
+scheduled at or before k (seen on /parameter_events), so a ``--switch`` lands exactly.
 """
 
 from __future__ import annotations
 
 import sys
+import time
 from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
@@ -15,13 +21,20 @@ from rclpy.duration import Duration
 
 from ..core.runner import build_plant
 from ..core.signals import Command, State
-from ..interface import CODECS, LAUNCHER_NODE, NAMESPACE, TOPICS, node_name
+from ..interface import (
+    CODECS,
+    LAUNCHER_NODE,
+    NAMESPACE,
+    RECORDING_WINDOW,
+    TOPICS,
+    node_name,
+)
 from ..recording import tool_every, tool_messages
 from .node_base import WatchedNode, run_main
 
 __all__ = ["PlantNode", "main"]
 
-_STATE, _CMD = CODECS["state"], CODECS["command"]
+_STATE, _CMD, _RECORDED = CODECS["state"], CODECS["command"], CODECS["recorded"]
 
 
 class PlantNode(WatchedNode):
@@ -38,7 +51,13 @@ class PlantNode(WatchedNode):
         self.pub_state = self.publisher("state")
         self.pub_clock = self.publisher("clock")
         self.pub_joint = self.publisher("joint_states")
+        self.lockstep = [self.pub_state, self.pub_clock, self.pub_joint]
         self.sub_cmd = self.subscription("command", self.on_command)
+        self.sub_recorded = self.subscription("recorded", self.on_recorded)
+        self.recorded = -1  #: every step up to this one is in the bag
+        self._recorded_at = time.monotonic()
+        self.held: State | None = None  #: a state not yet published (see _may_publish)
+        self._held_since = time.monotonic()
         self.await_launcher = self.declare_parameter(
             "await_launcher",
             False,
@@ -48,6 +67,30 @@ class PlantNode(WatchedNode):
                 read_only=True,
             ),
         ).value
+        #: scheduled strategy switches (--switch): state k is not published before the torque
+        #: controller has taken every switch scheduled at or before k
+        self.switch_steps = sorted(
+            self.declare_parameter(
+                "switch_steps",
+                None,
+                ParameterDescriptor(
+                    description="steps of the launcher's scheduled strategy switches: the plant "
+                    "waits at each until /drive/torque_controller has taken it",
+                    read_only=True,
+                    dynamic_typing=True,
+                ),
+            ).value
+            or []
+        )
+        self.switches_taken = 0
+        self._strategy_seen = ""  #: the last strategy the controller announced
+        if self.switch_steps:
+            from rcl_interfaces.msg import ParameterEvent
+
+            # rclpy's own parameter events, over DDS in every engine
+            self.sub_events = self.create_subscription(
+                ParameterEvent, "/parameter_events", self.on_parameter_event, 100
+            )
         self.k_started = False
 
     def _not_listening(self) -> list[str]:
@@ -73,9 +116,74 @@ class PlantNode(WatchedNode):
         if not self.k_started and not self._not_listening():
             self.k_started = True
             self.progressed()
-            self.publish_state(self.plant.state())
+            self._offer(self.plant.state())
             return
-        super().check()
+        held = self.held
+        if held is None:
+            super().check()
+            return
+        if self.failure:
+            return
+        k = int(held.k)
+        now = time.monotonic()
+        if not self._switched(k) and now - self._held_since > self.peer_timeout:
+            self.fail(
+                f"{self.get_fully_qualified_name()}: the strategy switch scheduled at step "
+                f"{self.switch_steps[self.switches_taken]} was not taken by "
+                f"{node_name('torque_controller')} within {self.peer_timeout} s"
+            )
+        elif not self._recording_allows(k) and now - self._recorded_at > self.peer_timeout:
+            self.fail(
+                f"{self.get_fully_qualified_name()}: the recorder {node_name('metrics_logger')} "
+                f"has written every step up to {self.recorded} and said nothing on "
+                f"{TOPICS['recorded'].name} for {self.peer_timeout} s; the drive waits at step "
+                f"{k} (at most {RECORDING_WINDOW} steps ahead of the recording): the recorder "
+                f"is stalled"
+            )
+
+    def resumed(self) -> None:
+        super().resumed()
+        self._recorded_at = self._held_since = time.monotonic()
+
+    def _recording_allows(self, k: int) -> bool:
+        """Back-pressure: the recording is at most RECORDING_WINDOW steps behind."""
+        return k - self.recorded <= RECORDING_WINDOW
+
+    def _switched(self, k: int) -> bool:
+        """Every switch scheduled at or before step k has been taken by the controller."""
+        due = self.switches_taken < len(self.switch_steps)
+        return not (due and self.switch_steps[self.switches_taken] <= k)
+
+    def _offer(self, state: State) -> None:
+        """Publish state k now, or hold it until the recorder and the scheduled switches allow."""
+        k = int(state.k)
+        if self._recording_allows(k) and self._switched(k):
+            self.publish_state(state)
+        else:
+            self.held = state
+            self._held_since = time.monotonic()
+
+    def _release(self) -> None:
+        held = self.held
+        if held is not None and self._recording_allows(int(held.k)) and self._switched(int(held.k)):
+            self.held = None
+            self.progressed()
+            self.publish_state(held)
+
+    def on_recorded(self, data: bytes) -> None:
+        self.recorded = int(_RECORDED.decode(data)[0])
+        self._recorded_at = time.monotonic()
+        self._release()
+
+    def on_parameter_event(self, event: Any) -> None:
+        if event.node != node_name("torque_controller"):
+            return
+        for p in event.changed_parameters:
+            # a request sent twice sets the same value twice: one switch
+            if p.name == "strategy" and p.value.string_value != self._strategy_seen:
+                self._strategy_seen = p.value.string_value
+                self.switches_taken += 1
+        self._release()
 
     def publish_state(self, state: State) -> None:
         self.pub_state.publish(_STATE.encode(state))
@@ -97,7 +205,7 @@ class PlantNode(WatchedNode):
     def on_command(self, data: bytes) -> None:
         cmd = Command(*_CMD.decode(data))
         self.progressed()
-        self.publish_state(self.plant.step(cmd))
+        self._offer(self.plant.step(cmd))
 
 
 def main(args: list[str] | None = None) -> int:

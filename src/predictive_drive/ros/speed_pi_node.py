@@ -29,6 +29,7 @@ class SpeedPINode(WatchedNode):
         self.n = run.steps
         self.pi = SpeedPI(params, ts=run.ts)
         self.pub_ref = self.publisher("reference")
+        self.lockstep = [self.pub_ref]
         self.sub_state = self.subscription("state", self.on_state)
         self._next = 0
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.parameter import Parameter
 
@@ -38,11 +38,28 @@ class TorqueControllerNode(WatchedNode):
         self.n = run.steps
         self.ctrl = make_controller(self.family, params, ts=run.ts)
         self.pub_cmd = self.publisher("command")
+        self.lockstep = [self.pub_cmd]
         self._states: dict[int, State] = {}
         self._refs: dict[int, Reference] = {}
         self._k = 0
         self.sub_state = self.subscription("state", self.on_state)
         self.sub_ref = self.subscription("reference", self.on_reference)
+        #: the launcher's scheduled switches (--switch): a strategy request is applied at the
+        #: next of these steps instead of at once, so it lands exactly where it was scheduled
+        self.schedule: list[int] = sorted(
+            self.declare_parameter(
+                "switch_steps",
+                None,
+                ParameterDescriptor(
+                    description="steps of the launcher's scheduled strategy switches: a "
+                    "strategy request is applied at the next of them",
+                    read_only=True,
+                    dynamic_typing=True,
+                ),
+            ).value
+            or []
+        )
+        self._deferred: list[tuple[int, str]] = []
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.add_post_set_parameters_callback(self.on_parameters_set)
 
@@ -67,13 +84,31 @@ class TorqueControllerNode(WatchedNode):
         return SetParametersResult(successful=True)
 
     def on_parameters_set(self, params: list[Parameter]) -> None:
-        """Apply an accepted switch: the next command is made by the new strategy."""
+        """Apply an accepted switch: the next command is made by the new strategy (or, with a
+        schedule, the command of the next scheduled step)."""
         for p in params:
-            if p.name == "strategy":
-                self.ctrl.set_strategy(p.value)
-                self.get_logger().info(f"strategy → {p.value} from step {self._k}")
+            if p.name != "strategy":
+                continue
+            last = self._deferred[-1][1] if self._deferred else self.ctrl.strategy.name
+            if p.value == last:
+                continue  # a request sent twice (see the launcher's resend): taken already
+            if self.schedule:
+                self._deferred.append((self.schedule.pop(0), p.value))
+            else:
+                self._switch(p.value)
+
+    def _switch(self, name: str) -> None:
+        # the same name again (a request sent twice) changes nothing: no new law instance
+        if name != self.ctrl.strategy.name:
+            self.ctrl.set_strategy(name)
+            self.get_logger().info(f"strategy → {name} from step {self._k}")
 
     def stalled_message(self) -> str:
+        if self.schedule and self.schedule[0] <= self._k:
+            return (
+                f"no strategy request for the switch scheduled at step {self.schedule[0]} "
+                f"(the plant waits there for it)"
+            )
         if self._k in self._states:
             return f"no {TOPICS['reference'].name} for step {self._k} from {node_name('speed_pi')}"
         return f"no {TOPICS['state'].name} for step {self._k} from {node_name('plant')}"
@@ -97,6 +132,8 @@ class TorqueControllerNode(WatchedNode):
             if k >= self.n:
                 self.finished = True
                 return
+            while self._deferred and self._deferred[0][0] <= k:
+                self._switch(self._deferred.pop(0)[1])
             if k == 0:
                 self.wait_matched(self.pub_cmd, 2, "plant, metrics_logger")
             self.pub_cmd.publish(_CMD.encode(self.ctrl.step(state, ref)))
