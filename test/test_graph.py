@@ -133,9 +133,11 @@ def test_graph_run_equals_inprocess_bit_for_bit(tmp_path):
 
 
 def test_composed_run_equals_inprocess(tmp_path):
-    """Composed: lock-step topics delivered in-process (LocalBus), same sequences bit for bit."""
+    """Composed: lock-step topics delivered in-process (LocalBus), same sequences bit for bit;
+    the bag says which engine made it."""
     composed, _ = run_against_inprocess("composed", 0.05, tmp_path)
     assert composed.steps == 1000
+    assert read_bag(composed.bag)[1].info["engine"] == "composed"
 
 
 @pytest.mark.parametrize("engine", ["ros", "composed"])
@@ -164,7 +166,7 @@ def test_timed_switch_through_parameter_service(tmp_path, engine):
 
 def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_run, tmp_path):
     bag = tmp_path / "live"
-    p, line = cli_run("im_short", "--duration", "4", "--strategy", "mptc", "--out", str(bag))
+    p, line = cli_run("im_short", "--duration", "30", "--strategy", "mptc", "--out", str(bag))
     env = dict(os.environ, ROS_DOMAIN_ID=re.search(r"ROS_DOMAIN_ID=(\d+)", line).group(1))
 
     def param(*args):
@@ -179,8 +181,20 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     ok = param("set", "torque_controller", "strategy", "db_mptc")
     assert ok.returncode == 0, ok.stderr
     assert param("get", "torque_controller", "strategy").stdout.strip() == "db_mptc"
-    ro = param("set", "plant", "u_dc", "300.0")
-    assert ro.returncode == 2 and "read-only" in ro.stderr.lower()
+    for node, name, value in (
+        ("plant", "u_dc", "300.0"),
+        ("torque_controller", "peer_timeout", "0.001"),
+        ("speed_pi", "startup_timeout", "1.0"),
+        ("metrics_logger", "bag", "elsewhere"),
+        ("torque_controller", "family", "mptc_pmsm"),
+    ):
+        ro = param("set", node, name, value)
+        assert ro.returncode == 2 and "read-only" in ro.stderr.lower(), (name, ro.stderr)
+    sim = param("set", "plant", "use_sim_time", "false")
+    assert sim.returncode == 2 and "use_sim_time must stay true" in sim.stderr
+    missing = param("get", "plant", "no_such_param")
+    assert missing.returncode == 2 and "has no parameter 'no_such_param'" in missing.stderr
+    assert "Traceback" not in missing.stderr and "u_dc" in missing.stderr  # lists what there is
     time.sleep(0.5)
     nodes = node_pids(line)
     assert_placed(nodes)
@@ -190,6 +204,7 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     assert all(ended(pid) for pid in nodes.values())
     tr, info = read_bag(bag)
     assert info.complete  # the logger closed it on SIGINT
+    assert f"interrupted: the bag {bag.resolve()} was closed with {tr.steps} steps" in err
     s = tr.col("command", "strategy").astype(int)
     assert tr.strategy_names[s[0]] == "mptc" and tr.strategy_names[s[-1]] == "db_mptc"
 
@@ -384,3 +399,78 @@ def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
     )
     tr, info = read_bag(tmp_path / "never")
     assert info.complete and tr.steps == 499  # everything up to the wait, closed
+
+
+def test_a_stalled_recorder_stops_the_run_with_every_step_recorded(cli_run, tmp_path):
+    """The logger stopped (SIGSTOP) for 5 s with --peer-timeout 3: the plant waits for it
+    (back-pressure), then ends the run naming it; when it goes on it takes what was in flight
+    and closes the bag: every state the plant published, and every command, is in it."""
+    bag = tmp_path / "stall"
+    p, line = cli_run("im_short", "--duration", "30", "--peer-timeout", "3", "--out", str(bag))
+    nodes = node_pids(line)
+    deadline = time.monotonic() + 60
+    while not (bag / "metadata.yaml").exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(1.0)
+    os.kill(nodes["metrics_logger"], signal.SIGSTOP)
+    time.sleep(5.0)
+    os.kill(nodes["metrics_logger"], signal.SIGCONT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 2
+    assert "node plant" in err and "failed first" in err
+    assert "the recorder /drive/metrics_logger has written every step up to" in err
+    assert "the recorder is stalled" in err and "was closed with" in err
+    held = int(re.search(r"the drive waits at step (\d+)", err).group(1))
+    tr, info = read_bag(bag)
+    assert info.complete
+    assert info.counts["/drive/state"] == held  # states 0..held-1: all it published
+    assert info.counts["/drive/command"] == held  # and every command it was sent
+    assert tr.steps == held - 1
+    assert all(ended(pid) for pid in nodes.values())
+
+
+def test_a_killed_recorder_is_said_and_repair_restores_the_bag(cli_run, tmp_path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    bag = tmp_path / "killed_logger"
+    p, nodes = started_recording(cli_run, bag)
+    time.sleep(1.0)
+    os.kill(nodes["metrics_logger"], signal.SIGKILL)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 2
+    assert "node metrics_logger" in err and "killed by signal 9" in err
+    assert "was not closed (no index)" in err and f"predictive-drive repair {bag.resolve()}" in err
+    cut, info = read_bag(bag)
+    assert not info.complete and cut.steps > 0
+    r = subprocess.run([*CLI, "repair", str(bag)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    fixed, info = read_bag(bag)
+    assert info.complete and fixed.steps == cut.steps
+    assert_same_run(fixed, cut)
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        states = sum(1 for c, _, _ in reader.messages() if c.topic == "/drive/state")
+    assert states == info.counts["/drive/state"] >= fixed.steps + 1
+    assert (bag / f"{bag.name}_0.mcap.orig").is_file()  # the original is kept
+
+
+def test_a_full_disk_under_the_graph_is_said(tmp_path):
+    """The logger's writes fail (a file-size limit the nodes inherit stands in for a full
+    disk): the run stops naming it, and the bag is not presented as good."""
+    import resource
+
+    def limit() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (400_000, 400_000))
+
+    out = tmp_path / "full"
+    r = subprocess.run(
+        [*CLI, "run", "im_short", "--duration", "2", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        preexec_fn=limit,
+    )
+    assert r.returncode == 2, r.stderr
+    assert "node metrics_logger" in r.stderr and "File too large" in r.stderr
+    assert "was closed with" not in r.stderr

@@ -182,7 +182,10 @@ class BagWriter:
         try:
             self._finish()
         except OSError as e:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                pass  # what could not be written stays unwritten
             raise BagError(
                 f"closing the bag {self.directory} failed ({e.strerror or e}): it has no index; "
                 f"`predictive-drive repair {self.directory}` rebuilds one from what it holds"
@@ -297,15 +300,34 @@ class BagInfo:
 
 
 def mcap_file(bag: str | Path) -> Path:
+    """The recording of a bag directory (one ``.mcap`` file, and a ``metadata.yaml`` that is
+    rosbag2's if there is one) or the ``.mcap`` file given; BagError says what is wrong."""
     p = Path(bag)
     if p.is_dir():
         files = sorted(p.glob("*.mcap"))
         if not files:
             raise BagError(f"{p}: no .mcap file in this bag directory")
+        if len(files) > 1:
+            raise BagError(
+                f"{p}: {len(files)} .mcap files ({', '.join(f.name for f in files)}); a bag of "
+                f"this package has one: give the file itself"
+            )
+        _check_metadata_yaml(p / "metadata.yaml")
         return files[0]
     if not p.is_file():
         raise BagError(f"{p}: no such bag directory or .mcap file")
     return p
+
+
+def _check_metadata_yaml(path: Path) -> None:
+    if not path.exists():
+        return
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        raise BagError(f"{path}: not rosbag2 metadata ({type(e).__name__})") from None
+    if not (isinstance(doc, dict) and isinstance(doc.get("rosbag2_bagfile_information"), dict)):
+        raise BagError(f"{path}: not rosbag2 metadata (no rosbag2_bagfile_information mapping)")
 
 
 def _iter_records(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -14,7 +15,7 @@ import numpy as np
 
 from . import __version__
 from .api import analyze, bench, repair, report, reproduce, run
-from .errors import PredictiveDriveError
+from .errors import Interrupted, PredictiveDriveError
 from .reports.papers import MTPA_STUDIES, PAPER_TABLES
 from .ros.placement import AFFINITIES, SCHED_POLICIES
 
@@ -129,6 +130,7 @@ def cmd_run(a: argparse.Namespace) -> int:
             progress=update,
             affinity=a.affinity,
             sched=a.sched,
+            peer_timeout=a.peer_timeout,
         )
     finally:
         close()
@@ -147,8 +149,13 @@ def cmd_report(a: argparse.Namespace) -> int:
         _print_metrics(d)
         if not d["complete"]:
             print(
-                "  note: the file was cut short (no index); read as a stream up to the last "
-                "complete step"
+                "  note: the recording is truncated (no index: its writer was killed); read up "
+                f"to its last complete step; `predictive-drive repair {d['bag']}` rebuilds it"
+            )
+        if d["steps"] < d["planned_steps"]:
+            print(
+                f"  note: the run stopped early: {d['steps']} of {d['planned_steps']} planned "
+                "steps recorded"
             )
     return 0
 
@@ -281,10 +288,15 @@ def cmd_bench(a: argparse.Namespace) -> int:
         "composed_steps_per_s": "one process",
     }
     for k, what in whats.items():
-        if k in d:
+        if k not in d:
+            continue
+        startup = d[k.replace("steps_per_s", "startup_s")]
+        if d[k] is None:
+            print(f"{k} ({what}): no figure (too few progress samples for a slope)")
+        else:
             print(
-                f"{k} ({what}): {d[k]:,.0f} steps/s ({d[k] / rt:.2f}x real time; start-up "
-                f"{d[k.replace('steps_per_s', 'startup_s')]:.1f} s excluded)"
+                f"{k} ({what}): {d[k]:,.0f} steps/s ({d[k] / rt:.2f}x real time; slope over "
+                f"20-90 % of one run, start-up {startup:.1f} s excluded)"
             )
     for name, us in d["compute_us_per_step"].items():
         print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")
@@ -358,6 +370,14 @@ def build_parser() -> argparse.ArgumentParser:
         "woken node does not preempt the one publishing to it) or other (the kernel's default)",
     )
     r.add_argument("--out", help="bag directory to write (must not exist)")
+    r.add_argument(
+        "--peer-timeout",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="ROS engines: s of wall time a node waits for a silent peer (or the recorder) "
+        "before the run fails (default 10)",
+    )
     r.add_argument(
         "--switch",
         action="append",
@@ -441,14 +461,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, _interrupt)
     signal.signal(signal.SIGTERM, _interrupt)
     args = build_parser().parse_args(argv)
+    as_json = bool(getattr(args, "json", False))
     try:
         return int(args.func(args))
+    except Interrupted as e:
+        _say_error(e, as_json)
+        return 130
     except PredictiveDriveError as e:
-        print(f"predictive-drive: error: {e}", file=sys.stderr)
+        _say_error(e, as_json)
         return 2
     except KeyboardInterrupt:
-        print("predictive-drive: interrupted", file=sys.stderr)
+        _say_error(Interrupted("interrupted"), as_json)
         return 130
+    except BrokenPipeError:
+        # the reader went away (`report BAG | head -1`): nothing more to say to it
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 2
+
+
+def _say_error(e: PredictiveDriveError, as_json: bool) -> None:
+    """An error on stderr; with --json also as one JSON object on stdout."""
+    print(f"predictive-drive: error: {e}", file=sys.stderr)
+    if as_json:
+        print(dumps({"error": str(e), "kind": type(e).__name__}))
 
 
 if __name__ == "__main__":

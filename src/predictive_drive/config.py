@@ -10,6 +10,7 @@ reads the rest of that section.
 from __future__ import annotations
 
 import dataclasses
+import re
 import typing
 from pathlib import Path
 from typing import Any
@@ -28,12 +29,14 @@ __all__ = [
     "apply_settings",
     "LEGACY_FAMILIES",
     "SHARED",
+    "RclLoader",
     "build_section",
     "config_dir",
     "family_of",
     "load_scenario",
     "load_scenario_text",
     "nested_types",
+    "parse_yaml",
     "resolve_scenario_path",
     "scenario_names",
     "section_class",
@@ -42,6 +45,43 @@ __all__ = [
 ]
 
 SHARED = "/**"
+
+
+class RclLoader(yaml.SafeLoader):
+    """YAML as rcl reads a parameter file (``--params-file``): a number in exponent form without
+    a dot (``5e-5``) is a number, not the string YAML 1.1 makes of it; a key given twice in one
+    mapping is an error, not a silent overwrite."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, yaml.Node] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    "while reading a mapping",
+                    node.start_mark,
+                    f"key {key!r} given twice (first at line {seen[key].start_mark.line + 1})",
+                    key_node.start_mark,
+                )
+            seen[key] = key_node
+        return super().construct_mapping(node, deep=deep)
+
+
+RclLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
+def parse_yaml(text: str, where: str | Path) -> Any:
+    """Parameter-file YAML (see :class:`RclLoader`); ConfigError names ``where``."""
+    try:
+        return yaml.load(text, Loader=RclLoader)  # noqa: S506 — a SafeLoader subclass
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{where}: not valid YAML: {e}") from None
+
+
 #: the torque controller's key that names its controller family (not a field of its settings)
 FAMILY_KEY = "family"
 #: the family of a recording made before scenarios named one, by machine
@@ -68,6 +108,8 @@ def scenario_names() -> list[str]:
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     p = Path(name_or_path)
     if p.suffix in (".yaml", ".yml") or p.exists():
+        if p.is_dir():
+            raise ConfigError(f"scenario {p} is a directory, not a scenario file")
         if not p.is_file():
             raise ConfigError(f"scenario file {p} does not exist")
         return p
@@ -199,17 +241,22 @@ def load_scenario(
     """Read and validate a scenario, with the command line's overrides applied (the starting
     strategy, the run length in s); every error names the file and the key."""
     path = resolve_scenario_path(name_or_path)
-    sc = load_scenario_text(path.read_text(), path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ConfigError(
+            f"{path}: not a scenario file (not UTF-8 text: byte {e.start} is {e.object[e.start]:#x})"
+        ) from None
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read it: {e.strerror}") from None
+    sc = load_scenario_text(text, path)
     return sc.with_strategy(strategy).with_duration(duration)
 
 
 def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> Scenario:
     """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in).
     ``legacy``: a recording's stored text, which may predate the ``family`` key."""
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML: {e}") from None
+    doc = parse_yaml(text, path)
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected a ROS 2 parameter file (a mapping of node sections)")
     expected = {SHARED, *(f"{NAMESPACE}/{n}" for n in NODES)}
@@ -235,7 +282,7 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
         params = ctrl_params if node == "torque_controller" else _params(doc, key, path)
         built[node] = build_section(cls, params, nested, f"{path}: {key}")
     try:
-        return Scenario(
+        sc = Scenario(
             run,
             built["plant"],
             built["speed_pi"],
@@ -247,6 +294,23 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
         )
     except ConfigError as e:
         raise ConfigError(f"{path}: {ctrl_key}: {e}") from None
+    _check_windows(sc, path)
+    return sc
+
+
+def _check_windows(sc: Scenario, path: str | Path) -> None:
+    """The file's metrics windows must lie in its run (a shorter --duration clips them)."""
+    lo, d = sc.logger, sc.run.duration
+    if lo.window_end > d:
+        raise ConfigError(
+            f"{path}: /drive/metrics_logger.window_end {lo.window_end:g} s lies beyond the run "
+            f"({d:g} s); the window is [window_start, window_end) of it"
+        )
+    if lo.thd_window and lo.thd_window[1] > d:
+        raise ConfigError(
+            f"{path}: /drive/metrics_logger.thd_window ends at {lo.thd_window[1]:g} s, beyond "
+            f"the run ({d:g} s)"
+        )
 
 
 def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> str:
@@ -256,7 +320,7 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
     ``torque_controller.motor.l_q``. A value is a number, a string or a list; a string ``*f``
     multiplies the present value by ``f`` (``*0.7``: 70 % of it). ConfigError names the key and
     what it may be."""
-    doc = yaml.safe_load(text)
+    doc = parse_yaml(text, where)
     if not isinstance(doc, dict):
         raise ConfigError(f"{where}: expected a ROS 2 parameter file")
     for key, value in settings.items():

@@ -6,6 +6,7 @@ __all__ = [
     "BagError",
     "ConfigError",
     "GraphError",
+    "Interrupted",
     "PredictiveDriveError",
 ]
 
@@ -24,3 +25,8 @@ class BagError(PredictiveDriveError):
 
 class GraphError(PredictiveDriveError):
     """The ROS graph failed: a peer went silent, crashed or was interrupted."""
+
+
+class Interrupted(PredictiveDriveError):
+    """A run was stopped by Ctrl-C or SIGTERM; the message says where its recording is and what
+    it holds."""

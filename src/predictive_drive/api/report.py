@@ -65,6 +65,7 @@ def report(bag: str | Path) -> dict[str, Any]:
         "strategy": ev.info.info["strategy"],
         "engine": ev.info.info["engine"],
         "steps": ev.steps,
+        "planned_steps": ev.scenario.run.steps,
         "complete": ev.info.complete,
         "metrics": ev.metrics.as_dict(),
     }

@@ -2,20 +2,21 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..bag import BagWriter
+from ..bag import BagWriter, bag_status, check_new_bag
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.metrics import Metrics
 from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
 from ..core.timebase import step_index
-from ..errors import ConfigError
+from ..errors import ConfigError, Interrupted
 from ..recording import RunRecorder, bag_info, default_bag_dir
 from .report import evaluate, steps_of
 
@@ -100,34 +101,45 @@ def run(
     progress: Callable[[int, int], None] | None = None,
     affinity: str = "paired",
     sched: str = "batch",
+    peer_timeout: float = 10.0,
 ) -> RunResult:
     """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
     ``sched``: CPU placement (``paired`` | ``none``, see
     :func:`predictive_drive.ros.placement.cpu_plan`) and scheduling policy (``batch`` |
-    ``other``) of the ``ros`` engine's node processes."""
+    ``other``) of the ``ros`` engine's node processes; ``peer_timeout``: s of wall time a node
+    of a ROS engine waits for a silent peer before the run fails."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
+    if not (math.isfinite(peer_timeout) and peer_timeout > 0):
+        raise ConfigError(
+            f"--peer-timeout must be a positive number of seconds, got {peer_timeout}"
+        )
     sc = load_scenario(scenario, strategy=strategy, duration=duration)
     bag = Path(out) if out is not None else default_bag_dir(sc)
     n = sc.run.steps
     cb = (lambda k: progress(k, n)) if progress is not None else None
-    # checked for every engine, so a bad --switch fails before anything starts
+    # checked for every engine, so a bad --switch or --out fails before anything starts
     at_steps = switch_steps(sc, switches)
+    check_new_bag(bag)
     t0 = time.perf_counter()
-    if engine == "inprocess":
-        run_inprocess_to_bag(sc, bag, at_steps, cb)
-    else:
-        from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
+    try:
+        if engine == "inprocess":
+            run_inprocess_to_bag(sc, bag, at_steps, cb)
+        else:
+            from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
 
-        run_graph(
-            sc,
-            bag,
-            composed=(engine == "composed"),
-            switches=switches,
-            progress=cb,
-            affinity=affinity,
-            sched=sched,
-        )
+            run_graph(
+                sc,
+                bag,
+                composed=(engine == "composed"),
+                switches=switches,
+                progress=cb,
+                affinity=affinity,
+                sched=sched,
+                peer_timeout=peer_timeout,
+            )
+    except KeyboardInterrupt:
+        raise Interrupted(f"interrupted: {bag_status(bag).describe()} (of {n} planned)") from None
     wall = time.perf_counter() - t0
     ev = evaluate(bag)
     return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics, steps_of(ev))

@@ -13,7 +13,10 @@ from .fields import check_fields, choice, quantity
 from .machines import Machine
 from .timebase import StepProfile, step_index
 
-__all__ = ["LoggerParams", "PlantParams", "RunParams", "Scenario"]
+__all__ = ["MAX_STEPS", "LoggerParams", "PlantParams", "RunParams", "Scenario"]
+
+#: the most steps a run may have (10^9: ~14 h of simulated time at 50 µs, days of wall time)
+MAX_STEPS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -27,6 +30,16 @@ class RunParams:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.duration < self.ts:
+            raise ConfigError(
+                f"duration {self.duration:g} s is shorter than one control period "
+                f"(ts = {self.ts:g} s)"
+            )
+        if self.steps > MAX_STEPS:
+            raise ConfigError(
+                f"duration {self.duration:g} s at ts = {self.ts:g} s is {self.steps:.3g} steps; "
+                f"at most {MAX_STEPS:.0e} (shorten the run or lengthen ts)"
+            )
 
     @property
     def steps(self) -> int:

@@ -42,9 +42,11 @@ def isolated_domain() -> Iterator[int]:
     """A ROS_DOMAIN_ID no other predictive_drive run on this machine holds (flock'ed). The lock
     folder and files are open to every user (mode 1777 and 0666), so a second user's runs take
     other domains instead of failing on a lock file the first one created."""
-    if not LOCK_DIR.is_dir():
-        LOCK_DIR.mkdir(exist_ok=True)
-        os.chmod(LOCK_DIR, 0o1777)  # mkdir's mode is cut by the umask
+    LOCK_DIR.mkdir(exist_ok=True)
+    try:
+        os.chmod(LOCK_DIR, 0o1777)  # mkdir's mode is cut by the umask; an older one is mended
+    except PermissionError:
+        pass  # another user's folder: theirs to open
     start = os.getpid() % len(DOMAIN_RANGE)
     for i in range(len(DOMAIN_RANGE)):
         d = DOMAIN_RANGE[(start + i) % len(DOMAIN_RANGE)]

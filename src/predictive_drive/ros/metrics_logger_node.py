@@ -16,6 +16,7 @@ from ..bag import BagWriter
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice
+from ..errors import BagError
 from ..interface import CODECS, RECORDED_EVERY, TOPICS
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import WatchedNode, run_main
@@ -107,7 +108,11 @@ class MetricsLoggerNode(WatchedNode):
     def on_record(self, rec: str, data: bytes) -> None:
         self.progressed()
         self._last_message = time.monotonic()
-        row = self.rec.record_raw(rec, data)
+        try:
+            row = self.rec.record_raw(rec, data)
+        except BagError as e:
+            self._cannot_write(e)
+            return
         self._counts[rec] += 1
         self._last[rec] = int(row[0])
         through = min(self._last.values())
@@ -137,24 +142,40 @@ class MetricsLoggerNode(WatchedNode):
     def on_tool(self, key: str, data: bytes) -> None:
         self._last_message = time.monotonic()
         sec, nsec = struct.unpack_from("<iI", data, 4)  # header.stamp / clock, after the CDR header
-        self.writer.write(key, sec * 1_000_000_000 + nsec, data)
+        try:
+            self.writer.write(key, sec * 1_000_000_000 + nsec, data)
+        except BagError as e:
+            self._cannot_write(e)
+            return
         self._counts[key] += 1
         self._maybe_done()
 
+    def _cannot_write(self, e: BagError) -> None:
+        if not self.failure:
+            self.fail(f"{self.get_fully_qualified_name()}: {e}")
+
     def fail(self, message: str) -> None:
         super().fail(message)
-        self._publish_diagnostics("diagnostics", self.rec.error(message))
+        try:
+            self._publish_diagnostics("diagnostics", self.rec.error(message))
+        except BagError:
+            pass  # the bag is what failed: the message goes to the log only
 
     def close(self) -> None:
-        if not self._closed:
-            self._closed = True
+        if self._closed:
+            return
+        self._closed = True
+        try:
             try:
                 self.rec.finish()
             finally:
                 self.writer.close()
-            self.get_logger().info(
-                f"bag closed: {self.writer.directory} ({self.writer.message_count} messages)"
-            )
+        except BagError as e:
+            self.get_logger().error(f"the bag was not closed: {e}")
+            return
+        self.get_logger().info(
+            f"bag closed: {self.writer.directory} ({self.writer.message_count} messages)"
+        )
 
 
 def main(args: list[str] | None = None) -> int:

@@ -102,15 +102,34 @@ class DriveNode(Node):
         self.bus = bus
         kwargs.setdefault("namespace", NAMESPACE)
         super().__init__(name, **kwargs)
+        # rclpy declares use_sim_time (default false) itself; refuse only a false one was given
+        given = self._parameter_overrides.get("use_sim_time")
         if not self.has_parameter("use_sim_time"):
             self.declare_parameter("use_sim_time", True)
+        elif given is not None and given.value is False:
+            raise ConfigError(
+                f"{self.get_fully_qualified_name()}: use_sim_time is false; the drive runs on "
+                f"simulated time only (the plant's /clock): leave it true"
+            )
         self.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+        self.add_on_set_parameters_callback(self._keep_sim_time)
         self.timeouts: NodeTimeouts = build_section(
             NodeTimeouts, self.declare_fields(NodeTimeouts), {}, self._where()
         )
         self.failure: str | None = None
         self._finished = False
         self.notify: Callable[[], None] = lambda: None
+
+    def _keep_sim_time(self, params: list[Parameter]) -> Any:
+        from rcl_interfaces.msg import SetParametersResult
+
+        for p in params:
+            if p.name == "use_sim_time" and p.value is not True:
+                return SetParametersResult(
+                    successful=False,
+                    reason="use_sim_time must stay true: the drive runs on simulated time only",
+                )
+        return SetParametersResult(successful=True)
 
     @property
     def finished(self) -> bool:
