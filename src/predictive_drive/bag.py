@@ -14,6 +14,7 @@ import json
 import os
 import shutil
 import time
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,10 +37,13 @@ __all__ = [
     "BagInfo",
     "BagStatus",
     "BagWriter",
+    "RecordedTopic",
     "RepairResult",
     "bag_status",
     "check_new_bag",
+    "iter_messages",
     "read_bag",
+    "recorded_topics",
     "repair_bag",
 ]
 
@@ -448,3 +452,64 @@ def repair_bag(bag: str | Path) -> RepairResult:
         shutil.rmtree(tmp, ignore_errors=True)
     trace, _ = read_bag(path.parent)
     return RepairResult(path.parent, original, w.message_count, trace.steps)
+
+
+@dataclass(frozen=True)
+class RecordedTopic:
+    """A topic as a bag holds it: name, ROS type, the QoS it was offered with (rosbag2's
+    ``offered_qos_profiles``, a list of dicts), and its message count."""
+
+    name: str
+    type: str
+    qos: list[dict[str, Any]]
+    count: int
+
+
+def _indexed_reader(bag: str | Path, f: Any) -> Any:
+    reader = make_reader(f)
+    try:
+        reader.get_summary()
+    except (McapError, EOFError, ValueError, AssertionError) as e:
+        raise BagError(
+            f"{bag}: the recording has no index (its writer was killed: {type(e).__name__}); "
+            f"`predictive-drive repair {bag}` rebuilds it"
+        ) from None
+    return reader
+
+
+def recorded_topics(bag: str | Path) -> dict[str, RecordedTopic]:
+    """Every topic of an indexed recording, by name."""
+    path = mcap_file(bag)
+    with path.open("rb") as f:
+        summary = _indexed_reader(bag, f).get_summary()
+    counts = summary.statistics.channel_message_counts if summary.statistics else {}
+    out = {}
+    for cid, ch in summary.channels.items():
+        schema = summary.schemas.get(ch.schema_id)
+        qos = yaml.safe_load(ch.metadata.get("offered_qos_profiles", "[]")) or []
+        out[ch.topic] = RecordedTopic(
+            ch.topic, schema.name if schema else "", qos, counts.get(cid, 0)
+        )
+    return out
+
+
+def iter_messages(
+    bag: str | Path,
+    *,
+    topics: Sequence[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time in ns, serialized message) of an indexed recording in log-time order
+    (in file order among equal times), from ``start_ns`` to before ``end_ns``; ``topics``:
+    only these. Read as it goes, not into memory."""
+    path = mcap_file(bag)
+    with path.open("rb") as f:
+        reader = _indexed_reader(bag, f)
+        for _schema, channel, message in reader.iter_messages(
+            topics=list(topics) if topics is not None else None,
+            start_time=start_ns,
+            end_time=end_ns,
+            log_time_order=True,
+        ):
+            yield channel.topic, message.log_time, bytes(message.data)

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .api import analyze, bench, repair, report, reproduce, run
+from .api import analyze, bench, compare, repair, replay, report, reproduce, run
 from .errors import Interrupted, PredictiveDriveError
 from .reports.papers import MTPA_STUDIES, PAPER_TABLES
 from .ros.placement import AFFINITIES, SCHED_POLICIES
@@ -142,7 +142,7 @@ def cmd_run(a: argparse.Namespace) -> int:
 
 
 def cmd_report(a: argparse.Namespace) -> int:
-    d = report.report(a.bag)
+    d = report.report(a.bag, figures=a.figures)
     if a.json:
         print(dumps(d))
     else:
@@ -157,6 +157,8 @@ def cmd_report(a: argparse.Namespace) -> int:
                 f"  note: the run stopped early: {d['steps']} of {d['planned_steps']} planned "
                 "steps recorded"
             )
+        for f in d.get("figures", []):
+            print(f"figure   {f}")
     return 0
 
 
@@ -200,7 +202,9 @@ def _row_label(r: dict[str, Any]) -> str:
 
 
 def cmd_reproduce(a: argparse.Namespace) -> int:
-    d = reproduce.reproduce(a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration)
+    d = reproduce.reproduce(
+        a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration, figures=a.figures
+    )
     if a.json:
         print(dumps(d))
         return 0
@@ -303,6 +307,100 @@ def cmd_bench(a: argparse.Namespace) -> int:
     return 0
 
 
+def _remap(text: str) -> tuple[str, str]:
+    old, sep, new = text.partition(":=")
+    if not (sep and old and new):
+        raise argparse.ArgumentTypeError(
+            f"expected OLD:=NEW (e.g. /clock:=/sim_clock), got {text!r}"
+        )
+    return old, new
+
+
+def cmd_compare(a: argparse.Namespace) -> int:
+    d = compare.compare(a.bags, figures=a.figures)
+    if a.json:
+        print(dumps(d))
+        return 0
+    rows = [
+        ("T_RMSE N·m", "t_rmse", 1.0, ".4f"),
+        ("psi_RMSE Wb", "psi_rmse", 1.0, ".5f"),
+        ("f_ave kHz", "f_ave_hz", 1e-3, ".3f"),
+        ("Cal_ave", "cal_ave", 1.0, ".2f"),
+        ("deadbeat %", "deadbeat_share", 100.0, ".2f"),
+        ("speed_RMSE rad/s", "speed_rmse", 1.0, ".3f"),
+        ("THD %", "thd", 100.0, ".2f"),
+        ("compute µs/step", "compute_ns_median", 1e-3, ".2f"),
+    ]
+    width = max(len(r["label"]) for r in d["runs"]) + 2
+    print(f"{'':<18}" + "".join(f"{r['label']:>{width}}" for r in d["runs"]))
+    for title, key, scale, fmt in rows:
+        cells = []
+        for r in d["runs"]:
+            v = r["metrics"].get(key)
+            cells.append("-" if v is None or v != v else format(v * scale, fmt))
+        print(f"{title:<18}" + "".join(f"{c:>{width}}" for c in cells))
+    for f in d.get("figures", []):
+        print(f"figure {f}")
+    return 0
+
+
+def cmd_replay(a: argparse.Namespace) -> int:
+    if a.into:
+        d = replay.replay_into(a.bag, node=a.into, strategy=a.strategy, out=a.out)
+        if a.json:
+            print(dumps(d))
+            return 0
+        ag = d["agreement"]
+        print(
+            f"replayed {a.bag} into the torque controller ({d['strategy']}): {d['steps']} "
+            f"steps at {d['steps_per_s']:,.0f} steps/s; new bag {d['bag']}"
+        )
+        print(
+            f"  agreement with the recorded commands: vector {100 * ag['vector']:.2f} %, "
+            f"pulses {100 * ag['pulses']:.2f} %; compute {d['compute_us_per_step']:.2f} µs/step"
+        )
+        return 0
+    d = replay.replay(
+        a.bag,
+        rate=a.rate,
+        start_offset=a.start_offset,
+        playback_duration=a.playback_duration,
+        loop=a.loop,
+        topics=tuple(a.topics or ()),
+        exclude_topics=tuple(a.exclude_topics or ()),
+        remap=dict(a.remap or ()),
+        clock_hz=a.clock,
+        start_paused=a.start_paused,
+    )
+    if a.json:
+        print(
+            dumps({k: d[k] for k in ("published", "achieved_rate", "lag_s", "max_lag_s", "wall_s")})
+        )
+        return 0
+    total = sum(d["published"].values())
+    print(
+        f"replayed {d['bag']}: {total} messages in {d['wall_s']:.2f} s "
+        f"({d['passes']} pass{'es' if d['passes'] > 1 else ''}), achieved rate "
+        f"{d['achieved_rate']:.3g} (recorded s per wall s)"
+    )
+    for topic, n in d["published"].items():
+        print(f"  {topic:<28}{n:>9}")
+    if d["max_lag_s"] > 0.1:
+        print(
+            f"  fell behind the recording's pace by up to {d['max_lag_s']:.2f} s (at the end "
+            f"{d['lag_s']:.2f} s): every message was published, in order, but late"
+        )
+    return 0
+
+
+def cmd_layout(a: argparse.Namespace) -> int:
+    from .reports.layout import write_layout
+
+    path = write_layout(a.out)
+    print(f"wrote {path}: import it in Foxglove or Lichtblick (Layouts → Import from file)")
+    return 0
+
+
 def cmd_repair(a: argparse.Namespace) -> int:
     d = repair.repair(a.bag)
     if a.json:
@@ -390,8 +488,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("report", help="metrics of a recording, from the recording alone")
     rep.add_argument("bag", help="bag directory (or its .mcap file)")
+    rep.add_argument("--figures", metavar="DIR", help="also draw the run's figures (PNG) here")
     rep.add_argument("--json", action="store_true")
     rep.set_defaults(func=cmd_report)
+
+    cmp_ = sub.add_parser("compare", help="recordings side by side: metrics, overlaid figures")
+    cmp_.add_argument("bags", nargs="+", metavar="BAG")
+    cmp_.add_argument("--figures", metavar="DIR", help="draw the overlaid figures (PNG) here")
+    cmp_.add_argument("--json", action="store_true")
+    cmp_.set_defaults(func=cmd_compare)
 
     rp = sub.add_parser("reproduce", help="a paper's table side by side with our figures")
     rp.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES]))
@@ -402,6 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument(
         "--duration", type=float, help="shorten every run to this many simulated seconds"
     )
+    rp.add_argument("--figures", metavar="DIR", help="draw the table's runs, overlaid (PNG)")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
 
@@ -422,6 +528,48 @@ def build_parser() -> argparse.ArgumentParser:
     )
     an.add_argument("--json", action="store_true")
     an.set_defaults(func=cmd_analyze)
+
+    rpl = sub.add_parser(
+        "replay",
+        help="publish a recording onto ROS topics with its QoS, paced by its log time (as ros2 "
+        "bag play does), on the environment's ROS_DOMAIN_ID",
+    )
+    rpl.add_argument("bag", help="bag directory (or its .mcap file)")
+    rpl.add_argument("--rate", type=float, default=1.0, help="recorded s per wall s (> 0)")
+    rpl.add_argument("--start-offset", type=float, default=0.0, metavar="S",
+                     help="start S s of recorded time after the bag's start")  # fmt: skip
+    rpl.add_argument("--playback-duration", type=float, metavar="S",
+                     help="play S s of recorded time")  # fmt: skip
+    rpl.add_argument("--loop", action="store_true", help="play again from the start at the end")
+    rpl.add_argument("--topics", nargs="+", metavar="TOPIC", help="play only these topics")
+    rpl.add_argument("--exclude-topics", nargs="+", metavar="TOPIC", help="leave these out")
+    rpl.add_argument("--remap", action="append", type=_remap, metavar="OLD:=NEW",
+                     help="publish topic OLD as NEW (repeatable)")  # fmt: skip
+    rpl.add_argument("--clock", type=float, nargs="?", const=40.0, metavar="HZ",
+                     help="publish /clock from the replayed time at HZ (default 40) instead of "
+                     "the recorded /clock")  # fmt: skip
+    rpl.add_argument("--start-paused", action="store_true",
+                     help="start paused (`predictive-drive param set player paused false`)")  # fmt: skip
+    rpl.add_argument(
+        "--into",
+        choices=["torque_controller"],
+        help="instead: feed the recorded states and references step by step into a node of "
+        "this kind and record its new commands (deterministic replay)",
+    )
+    rpl.add_argument(
+        "--strategy",
+        help="with --into: the strategy to replay into (default: the recording's, switched "
+        "where it switched)",
+    )
+    rpl.add_argument("--out", help="with --into: the new bag (default: beside the recording)")
+    rpl.add_argument("--json", action="store_true")
+    rpl.set_defaults(func=cmd_replay)
+
+    lay = sub.add_parser(
+        "layout", help="write a Foxglove / Lichtblick layout for the drive's topics (JSON)"
+    )
+    lay.add_argument("--out", default="layouts/drive.foxglove.json", help="default: %(default)s")
+    lay.set_defaults(func=cmd_layout)
 
     rr = sub.add_parser(
         "repair",

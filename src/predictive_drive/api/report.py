@@ -54,9 +54,10 @@ def evaluate(bag: str | Path) -> Evaluation:
     return Evaluation(trace, info, sc, metrics)
 
 
-def report(bag: str | Path) -> dict[str, Any]:
+def report(bag: str | Path, *, figures: str | Path | None = None) -> dict[str, Any]:
     """Metrics of a recording, from the recording alone; for a PMSM, per load step also the
-    measured current angle and amplitude it settled to (the MTPA view, SPEC §3.4)."""
+    measured current angle and amplitude it settled to (the MTPA view, SPEC §3.4). ``figures``:
+    a folder to draw the paper-style figures into (PNG)."""
     ev = evaluate(bag)
     out: dict[str, Any] = {
         "bag": str(Path(bag)),
@@ -71,6 +72,12 @@ def report(bag: str | Path) -> dict[str, Any]:
     }
     if steps := steps_of(ev):
         out["load_steps"] = steps
+    if figures is not None:
+        from ..reports.figures import Run, run_figures, save
+
+        label = f"{ev.scenario.name} {ev.info.info['strategy']}"
+        drawn = save(run_figures(Run(ev.trace, ev.scenario, label)), figures)
+        out["figures"] = [str(p) for p in drawn]
     return out
 
 

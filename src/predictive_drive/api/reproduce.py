@@ -19,6 +19,7 @@ from ..core.analysis import load_steps
 from ..core.control.mtpa import mtpa_point
 from ..errors import ConfigError
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, MTPAStudy
+from .compare import compare
 from .controller_replay import controller_replay
 from .report import evaluate
 from .run import RunResult, run
@@ -94,14 +95,20 @@ def reproduce(
     jobs: int | None = None,
     repeats: int = 5,
     duration: float | None = None,
+    figures: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study. ``duration`` shortens every run (a
-    quick look; the figures then do not compare with the paper's)."""
+    quick look; the figures then do not compare with the paper's). ``figures``: a folder for
+    the runs drawn overlaid (PNG)."""
     if scenario in MTPA_STUDIES:
-        return reproduce_mtpa(
+        out = reproduce_mtpa(
             scenario, engine=engine, out_root=out_root, jobs=jobs, duration=duration
         )
+        if figures is not None:  # the runs at exact parameters, one per strategy and form
+            bags = list(dict.fromkeys(r["bag"] for r in out["rows"] if _exact(r, r["strategy"])))
+            out["figures"] = compare(bags, figures=figures)["figures"]
+        return out
     if scenario not in PAPER_TABLES:
         raise ConfigError(
             f"reproduce: no paper table for {scenario!r}; available: "
@@ -129,7 +136,7 @@ def reproduce(
             r["compute_ratio"] = t["hot_ratio"]
             r["compute_ns_in_loop"] = t["loop_ns"]
             r["compute_ratio_in_loop"] = t["loop_ratio"]
-    return {
+    out = {
         "scenario": scenario,
         "engine": engine,
         "duration": duration,
@@ -137,6 +144,9 @@ def reproduce(
         "how": table.how,
         "rows": rows,
     }
+    if figures is not None:
+        out["figures"] = compare([r["bag"] for r in rows], figures=figures)["figures"]
+    return out
 
 
 def _mtpa_runs(study: MTPAStudy) -> list[tuple[str, dict[str, Any], dict[str, float]]]:

@@ -5,6 +5,7 @@ of its ``family``; ``strategy`` switches at run time through the standard parame
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -13,7 +14,7 @@ from rclpy.parameter import Parameter
 
 from ..config import FAMILY_KEY, family_of, section_class
 from ..core.control import CONTROLLERS, make_controller, strategy_names
-from ..core.fields import Quantity
+from ..core.fields import Quantity, check_fields, quantity
 from ..core.scenario import RunParams
 from ..core.signals import Reference, State
 from ..interface import CODECS, TOPICS, node_name
@@ -22,6 +23,22 @@ from .node_base import WatchedNode, describe, run_main
 __all__ = ["TorqueControllerNode", "main"]
 
 _STATE, _REF, _CMD = CODECS["state"], CODECS["reference"], CODECS["command"]
+
+
+@dataclass(frozen=True)
+class CommandReaders:
+    """Who must hear command 0 before it goes out."""
+
+    command_readers: int = quantity(
+        "subscribers /drive/command must have before command 0 (the plant and the logger; a "
+        "replay into this node: the replayer alone)",
+        ge=1,
+        integer=True,
+        default=2,
+    )
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 class TorqueControllerNode(WatchedNode):
@@ -35,6 +52,7 @@ class TorqueControllerNode(WatchedNode):
     def __init__(self, **kw: Any) -> None:
         super().__init__("torque_controller", **kw)
         run, params = self.load_params()
+        self.links = CommandReaders(**self.declare_fields(CommandReaders))
         self.n = run.steps
         self.ctrl = make_controller(self.family, params, ts=run.ts)
         self.pub_cmd = self.publisher("command")
@@ -135,7 +153,7 @@ class TorqueControllerNode(WatchedNode):
             while self._deferred and self._deferred[0][0] <= k:
                 self._switch(self._deferred.pop(0)[1])
             if k == 0:
-                self.wait_matched(self.pub_cmd, 2, "plant, metrics_logger")
+                self.wait_matched(self.pub_cmd, self.links.command_readers, "its readers")
             self.pub_cmd.publish(_CMD.encode(self.ctrl.step(state, ref)))
             self._k = k + 1
             if self._k == self.n:

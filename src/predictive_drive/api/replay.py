@@ -1,0 +1,68 @@
+"""``predictive-drive replay``: a recording published back onto ROS as ``ros2 bag play`` does, on
+the environment's ROS domain, so the user's own nodes and tools receive it."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError, GraphError
+
+__all__ = ["replay", "replay_into"]
+
+
+def replay(bag: str | Path, **options: Any) -> dict[str, Any]:
+    """Play ``bag`` (options: :class:`~predictive_drive.ros.player_node.PlayOptions`) and say
+    what was published, the achieved rate (recorded s per wall s) and the final lag."""
+    import rclpy
+    from rclpy.context import Context
+
+    from ..ros.params import domain_id
+    from ..ros.player_node import PlayOptions, play
+
+    opts = PlayOptions(**options)
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id())
+    try:
+        result = play(bag, opts, context=ctx)
+    except KeyboardInterrupt:
+        raise GraphError("replay interrupted") from None
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    return {"bag": str(bag), **dataclasses.asdict(result)}
+
+
+def replay_into(
+    bag: str | Path, *, node: str = "torque_controller", strategy: str | None = None,
+    out: str | Path | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Feed ``bag`` into a ``node`` process step by step (see
+    :mod:`predictive_drive.ros.stepper`) and record the result; says how the new decisions agree
+    with the recorded ones, the controller's compute time and the pace."""
+    from ..bag import check_new_bag
+    from ..ros.stepper import replay_into as step
+
+    if node != "torque_controller":
+        raise ConfigError(f"--into: {node!r}; a recording can be replayed into: torque_controller")
+    source = Path(bag)
+    if out is None:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        out = (
+            source.resolve().parent
+            / f"{source.resolve().name}_into_{strategy or 'recorded'}_{stamp}"
+        )
+    target = check_new_bag(out)
+    try:
+        r = step(source, target, strategy=strategy)
+    except KeyboardInterrupt:
+        raise GraphError("replay into the torque controller interrupted") from None
+    return {
+        "bag": str(r.bag),
+        "steps": r.steps,
+        "strategy": r.strategy,
+        "agreement": {"vector": r.vector_agreement, "pulses": r.pulse_agreement},
+        "compute_us_per_step": r.compute_us_per_step,
+        "steps_per_s": r.steps_per_s,
+    }

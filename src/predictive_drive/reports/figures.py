@@ -1,0 +1,219 @@
+"""Paper-style figures of a recording (matplotlib, no display): speed, torque (with a zoomed
+window), stator-flux magnitude and locus, phase-a current with its spectrum and THD, vector
+utilization (MPTC), current angle and dq currents (field-oriented control); and the same overlaid
+for several runs.
+
+Every line plots the recording's own samples, undecimated (a test reads them back from the
+artists and compares them with the recording).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.metrics import phase_a_spectrum
+from ..core.scenario import Scenario
+from ..core.trace import Trace
+from ..errors import ConfigError
+
+__all__ = ["Run", "compare_figures", "run_figures", "save"]
+
+RPM = 60.0 / (2.0 * math.pi)
+
+
+@dataclass(frozen=True)
+class Run:
+    """A recording to draw: its trace, scenario and a label for legends."""
+
+    trace: Trace
+    scenario: Scenario
+    label: str
+
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+    except ImportError:
+        raise ConfigError(
+            "--figures needs matplotlib: pip install 'predictive_drive[figures]' (`make setup` "
+            "installs it)"
+        ) from None
+
+    matplotlib.use("Agg")  # files only: no display here, nor wanted
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _time(tr: Trace, rec: str) -> np.ndarray:
+    rows = tr.state if rec == "state" else tr.reference if rec == "reference" else tr.command
+    return np.asarray(rows[:, 1])
+
+
+def zoom_window(tr: Trace, sc: Scenario) -> tuple[float, float]:
+    """A short window to look into the ripple: 20 ms (or 40 periods) from the THD window's start
+    (a steady stretch) or from 3/4 of the run."""
+    end = tr.steps * tr.ts
+    start = sc.logger.thd_window[0] if sc.logger.thd_window else 0.75 * end
+    width = max(0.02, 40 * tr.ts)
+    return start, min(end, start + width)
+
+
+def steady_window(tr: Trace, sc: Scenario) -> tuple[float, float]:
+    """The second half of the last load step the run reaches: where it has settled."""
+    end = tr.steps * tr.ts
+    last = max((t for t in sc.plant.load_times if t < end), default=0.0)
+    return 0.5 * (last + end), end
+
+
+def _zoom(ax: Any, x0: float, x1: float) -> None:
+    """Limit the axes to [x0, x1] and the y range to what its lines show there."""
+    ax.set_xlim(x0, x1)
+    lo, hi = math.inf, -math.inf
+    for line in ax.get_lines():
+        x, y = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+        inside = y[(x >= x0) & (x <= x1)]
+        if inside.size:
+            lo, hi = min(lo, float(inside.min())), max(hi, float(inside.max()))
+    if lo < hi:
+        pad = 0.05 * (hi - lo)
+        ax.set_ylim(lo - pad, hi + pad)
+
+
+def run_figures(run: Run) -> dict[str, Any]:
+    """The figures of one run, by name: speed, torque, flux, current, and vectors (a
+    finite-control-set run) or foc (a field-oriented one)."""
+    plt = _pyplot()
+    tr, sc = run.trace, run.scenario
+    t_s, t_r = _time(tr, "state"), _time(tr, "reference")
+    figs: dict[str, Any] = {}
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(t_s, tr.col("state", "omega_m") * RPM, label="ω_m")
+    ax.plot(t_r, tr.col("reference", "speed_ref") * RPM, "--", label="ω_m*")
+    ax.set(xlabel="t / s", ylabel="speed / (r/min)", title=f"{run.label}: speed")
+    ax.legend()
+    figs["speed"] = fig
+
+    fig, (ax, zx) = plt.subplots(2, 1, figsize=(8, 6))
+    for a in (ax, zx):
+        a.plot(t_s, tr.col("state", "torque"), label="T_e", linewidth=0.6)
+        a.plot(t_r, tr.col("reference", "torque_ref"), "--", label="T*", linewidth=0.8)
+        a.set(xlabel="t / s", ylabel="torque / N·m")
+    z0, z1 = zoom_window(tr, sc)
+    _zoom(zx, z0, z1)
+    ax.set_title(f"{run.label}: torque (below: {1e3 * (z1 - z0):.0f} ms from {z0:g} s)")
+    ax.legend()
+    fig.tight_layout()
+    figs["torque"] = fig
+
+    fig, (ax, lx) = plt.subplots(1, 2, figsize=(11, 4.5))
+    pa, pb = tr.col("state", "psi_alpha"), tr.col("state", "psi_beta")
+    ax.plot(t_s, np.hypot(pa, pb), label="|ψ_s|", linewidth=0.6)
+    ax.plot(t_r, tr.col("reference", "flux_ref"), "--", label="ψ*")
+    ax.set(xlabel="t / s", ylabel="stator flux / Wb", title=f"{run.label}: stator flux")
+    ax.legend()
+    lx.plot(pa, pb, linewidth=0.4)
+    lx.set(xlabel="ψ_α / Wb", ylabel="ψ_β / Wb", title="flux locus", aspect="equal")
+    fig.tight_layout()
+    figs["flux"] = fig
+
+    fig, (ax, sx) = plt.subplots(2, 1, figsize=(8, 6))
+    ax.plot(t_s, tr.col("state", "i_alpha"), linewidth=0.5)
+    _zoom(ax, z0, z1)
+    ax.set(xlabel="t / s", ylabel="i_a / A", title=f"{run.label}: phase-a current")
+    window = sc.logger.thd_window or steady_window(tr, sc)
+    try:
+        sp = phase_a_spectrum(tr, window[0], min(window[1], tr.steps * tr.ts))
+        freq = np.arange(sp.amplitude.size) / sp.period
+        sx.plot(freq, sp.amplitude, linewidth=0.6)
+        sx.set_xscale("symlog", linthresh=max(freq[1], 1.0) if freq.size > 1 else 1.0)
+        sx.set(
+            xlabel="f / Hz",
+            ylabel="amplitude / A",
+            title=f"spectrum over {sp.cycles} cycles of {sp.fundamental_hz:.1f} Hz: "
+            f"THD {100 * sp.thd:.2f} % (harmonics alone {100 * sp.thd_harmonics:.2f} %)",
+        )
+    except ValueError as e:  # no whole electrical cycle in the window
+        sx.set_title(f"no spectrum: {e}")
+    fig.tight_layout()
+    figs["current"] = fig
+
+    vec = tr.col("command", "vector")
+    if np.any(np.isfinite(vec)):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        counts = np.bincount(vec[np.isfinite(vec)].astype(int), minlength=7)[:7]
+        ax.bar([f"V{i}" for i in range(7)], counts / vec.size)
+        ax.set(ylabel="share of steps", title=f"{run.label}: vector utilization")
+        figs["vectors"] = fig
+    theta = tr.col("command", "current_angle")
+    if np.any(np.isfinite(theta)):
+        fig, (ax, dx) = plt.subplots(2, 1, figsize=(8, 6))
+        t_c = _time(tr, "command")
+        ax.plot(t_c, np.degrees(theta), linewidth=0.5, label="θ")
+        if sc.family == "foc_pmsm":  # the dither averaged out over its period
+            m = max(1, round(1.0 / (sc.controller.injection_hz * tr.ts)))
+            mean = np.convolve(np.degrees(theta), np.ones(m) / m, mode="same")
+            ax.plot(t_c, mean, linewidth=1.0, label=f"θ averaged over {m} steps")
+        ax.set(xlabel="t / s", ylabel="θ / °", title=f"{run.label}: current angle (from q)")
+        ax.legend()
+        n = tr.steps
+        i = (tr.col("state", "i_alpha") + 1j * tr.col("state", "i_beta"))[:n]
+        i_dq = i * np.exp(-1j * tr.col("state", "theta_e")[:n])
+        dx.plot(t_c, i_dq.real, label="i_d", linewidth=0.5)
+        dx.plot(t_c, i_dq.imag, label="i_q", linewidth=0.5)
+        dx.plot(t_c, tr.col("command", "i_d_ref"), "--", label="i_d*", linewidth=0.8)
+        dx.plot(t_c, tr.col("command", "i_q_ref"), "--", label="i_q*", linewidth=0.8)
+        dx.set(xlabel="t / s", ylabel="current / A")
+        dx.legend()
+        fig.tight_layout()
+        figs["foc"] = fig
+    return figs
+
+
+def compare_figures(runs: Sequence[Run]) -> dict[str, Any]:
+    """Runs overlaid (e.g. the strategies of one scenario): speed, torque, flux magnitude, and
+    the phase-a spectra."""
+    plt = _pyplot()
+    figs: dict[str, Any] = {}
+    panels = {
+        "speed": ("omega_m", RPM, "speed / (r/min)"),
+        "torque": ("torque", 1.0, "torque / N·m"),
+    }
+    for name, (field, scale, ylabel) in panels.items():
+        fig, ax = plt.subplots(figsize=(8, 4))
+        for r in runs:
+            ax.plot(_time(r.trace, "state"), r.trace.col("state", field) * scale,
+                    label=r.label, linewidth=0.6)  # fmt: skip
+        ax.set(xlabel="t / s", ylabel=ylabel, title=f"{name}: {len(runs)} runs")
+        ax.legend()
+        figs[name] = fig
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for r in runs:
+        psi = np.hypot(r.trace.col("state", "psi_alpha"), r.trace.col("state", "psi_beta"))
+        ax.plot(_time(r.trace, "state"), psi, label=r.label, linewidth=0.6)
+    ax.set(xlabel="t / s", ylabel="|ψ_s| / Wb", title=f"stator flux: {len(runs)} runs")
+    ax.legend()
+    figs["flux"] = fig
+    return figs
+
+
+def save(figs: dict[str, Any], directory: str | Path, prefix: str = "") -> list[Path]:
+    """Write each figure as ``<prefix><name>.png`` into ``directory`` (made if need be); closes
+    them. Returns the files."""
+    plt = _pyplot()
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    out = []
+    for name, fig in figs.items():
+        path = d / f"{prefix}{name}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        out.append(path)
+    return out

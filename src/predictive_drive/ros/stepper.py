@@ -1,0 +1,220 @@
+"""Lock-step replay into a controller node (``predictive-drive replay BAG --into
+torque_controller``): what rosbag2 cannot do. A torque controller node process runs the recorded
+scenario; this process plays plant and speed loop for it from the recording, one step at a time
+(state k and reference k out, then wait for command k), and records a new bag: the recorded
+states, references and tool topics with the new commands.
+
+The controller's own estimate follows its own commands, as in the running drive: the induction
+motor's flux estimate integrates the voltage *it* applied. Replayed into the strategy that made
+the recording, every command comes out as recorded. Replayed into another, the states are still
+those the recorded commands produced, so the new strategy answers a drive it does not steer:
+an open-loop what-if, whose flux estimate drifts from the recorded plant's flux as its commands
+differ — read its agreement as "what it would have decided here", not as a closed-loop run.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..bag import LOGS_DIR, BagWriter, read_bag
+from ..core.control import strategy_names
+from ..core.signals import COMMAND_INDEX, PULSES
+from ..core.trace import Trace
+from ..errors import GraphError
+from ..interface import CODECS, TOPICS, node_name, stamp_ns
+from ..recording import bag_info, scenario_of, tool_every, tool_messages
+from .launcher import isolated_domain, stop_processes
+from .placement import ros_env
+
+__all__ = ["StepResult", "replay_into"]
+
+#: s the stepper waits for one command before it gives the controller up
+COMMAND_TIMEOUT = 10.0
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """A lock-step replay: the new bag, steps, the share of steps whose command has the recorded
+    vector and the recorded pulses, the new strategy's compute time, and the pace."""
+
+    bag: Path
+    steps: int
+    strategy: str
+    vector_agreement: float
+    pulse_agreement: float
+    compute_us_per_step: float
+    steps_per_s: float
+
+
+def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -> StepResult:
+    """Feed the recording ``source`` into a torque controller node step by step and record the
+    result to ``out``. ``strategy``: the one strategy to replay into (default: the recording's
+    own, switched at the recorded steps)."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from .transport import executor, msg_class, qos
+
+    trace, info = read_bag(source)
+    sc = scenario_of(info.info, info.path)
+    n = trace.steps
+    names = strategy_names(sc.family)
+    if strategy is not None and strategy not in names:
+        raise GraphError(f"--strategy {strategy!r}: valid for {sc.family}: {', '.join(names)}")
+    recorded = [names[int(i)] for i in trace.col("command", "strategy")]
+    plan = [strategy] * n if strategy is not None else recorded
+    out = out.resolve()
+    logs = out / LOGS_DIR
+    logs.mkdir(parents=True)
+    scenario_file = logs / "scenario.yaml"
+    scenario_file.write_text(sc.text)
+    overrides = {
+        node_name("torque_controller"): {
+            "ros__parameters": {
+                "duration": n * sc.ts,
+                "strategy": plan[0],
+                "command_readers": 1,
+                "peer_timeout": COMMAND_TIMEOUT,
+            }
+        }
+    }
+    (logs / "overrides.yaml").write_text(yaml.safe_dump(overrides))
+    args = ["--ros-args", "--params-file", str(scenario_file)]
+    args += ["--params-file", str(logs / "overrides.yaml")]
+    commands: list[bytes] = []
+    with isolated_domain() as domain:
+        ctx = Context()
+        rclpy.init(context=ctx, domain_id=domain)
+        me = rclpy.create_node("stepper", namespace="/drive", context=ctx)
+        ex = executor(ctx)
+        ex.add_node(me)
+        got: list[bytes] = []
+        sub = me.create_subscription(
+            msg_class(TOPICS["command"].type),
+            TOPICS["command"].name,
+            got.append,
+            qos(TOPICS["command"].qos),
+            raw=True,
+        )
+        pub_state = me.create_publisher(
+            msg_class(TOPICS["state"].type), TOPICS["state"].name, qos(TOPICS["state"].qos)
+        )
+        pub_ref = me.create_publisher(
+            msg_class(TOPICS["reference"].type),
+            TOPICS["reference"].name,
+            qos(TOPICS["reference"].qos),
+        )
+        client = AsyncParameterClient(me, node_name("torque_controller"))
+        with (logs / "torque_controller.log").open("wb") as log:
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "predictive_drive.ros.torque_controller_node", *args],
+                env=ros_env(domain),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+            )
+        procs = {"torque_controller": proc}
+        try:
+
+            def matched() -> bool:
+                return (
+                    sub.get_publisher_count() > 0
+                    and pub_state.get_subscription_count() > 0
+                    and pub_ref.get_subscription_count() > 0
+                )
+
+            _wait(ex, matched, 60.0, proc, logs, "the controller never matched the topics")
+            if strategy is None and len(set(plan)) > 1:
+                _wait(ex, client.services_are_ready, 60.0, proc, logs, "no parameter services")
+            state, ref = CODECS["state"], CODECS["reference"]
+            in_force = plan[0]
+            t0 = time.perf_counter()
+            for k in range(n + 1):
+                if k < n and plan[k] != in_force:  # the recorded switch, before command k
+                    in_force = plan[k]
+                    fut = client.set_parameters(
+                        [Parameter("strategy", Parameter.Type.STRING, in_force)]
+                    )
+                    _wait(ex, fut.done, COMMAND_TIMEOUT, proc, logs, f"switch at step {k}")
+                pub_ref.publish(ref.encode(tuple(trace.reference[k])))
+                pub_state.publish(state.encode(tuple(trace.state[k])))
+                if k < n:
+                    _wait(ex, lambda k=k: len(got) > k, COMMAND_TIMEOUT, proc, logs, f"step {k}")
+            wall = time.perf_counter() - t0
+            proc.wait(timeout=COMMAND_TIMEOUT + 30)
+            commands = got[:n]
+        finally:
+            stop_processes(procs)
+            ex.shutdown(timeout_sec=1.0)
+            me.destroy_node()
+            rclpy.try_shutdown(context=ctx)
+    new = [CODECS["command"].decode(c) for c in commands]
+    _record(out, source, trace, sc, new, plan[0] if strategy is None else strategy, info.info)
+    rec = trace.command
+    v = COMMAND_INDEX.vector
+    # the same vector, or no vector in either (field-oriented control: NaN)
+    same_vector = [c[v] == r[v] or (c[v] != c[v] and r[v] != r[v]) for c, r in zip(new, rec)]
+    same_pulses = [tuple(c[PULSES]) == tuple(r[PULSES]) for c, r in zip(new, rec)]
+    compute = sorted(c[COMMAND_INDEX.compute_ns] for c in new)
+    return StepResult(
+        bag=out,
+        steps=n,
+        strategy=strategy or "as recorded",
+        vector_agreement=sum(same_vector) / n,
+        pulse_agreement=sum(same_pulses) / n,
+        compute_us_per_step=compute[len(compute) // 2] / 1e3,
+        steps_per_s=n / wall,
+    )
+
+
+def _wait(
+    ex: Any, ready: Any, timeout: float, proc: subprocess.Popen[bytes], logs: Path, what: str
+) -> None:
+    deadline = time.monotonic() + timeout
+    while not ready():
+        if proc.poll() is not None:
+            tail = (logs / "torque_controller.log").read_text(errors="replace")[-1500:]
+            raise GraphError(f"the torque controller ended ({what}):\n{tail}")
+        if time.monotonic() > deadline:
+            raise GraphError(f"replay into the torque controller: {what} within {timeout} s")
+        ex.spin_once(timeout_sec=0.01)
+
+
+def _record(
+    out: Path,
+    source: str | Path,
+    trace: Trace,
+    sc: Any,
+    commands: list[tuple[float, ...]],
+    strategy: str,
+    original: dict[str, str],
+) -> None:
+    """The new bag: the recorded states, references and tool topics, the new commands, in
+    log-time order."""
+    info = {
+        **bag_info(sc.with_strategy(strategy), "replay"),
+        "replay_of": str(Path(source).resolve()),
+        "replayed_engine": original.get("engine", ""),
+    }
+    every = tool_every(sc.ts)
+    with BagWriter(out, info=info) as w:
+        state, ref, cmd = CODECS["state"], CODECS["reference"], CODECS["command"]
+        for k in range(trace.steps + 1):
+            row = tuple(trace.state[k])
+            ns = stamp_ns(row[1])
+            w.write("state", ns, state.encode(row))
+            w.write("reference", ns, ref.encode(tuple(trace.reference[k])))
+            if k < trace.steps:
+                w.write("command", ns, cmd.encode(commands[k]))
+            for key, t_ns, data in tool_messages(row, every):
+                w.write(key, t_ns, data)
