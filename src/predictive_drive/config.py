@@ -89,16 +89,40 @@ LEGACY_FAMILIES = {Machine.INDUCTION: "mptc_im", Machine.PMSM: "mptc_pmsm"}
 
 
 def config_dir() -> Path:
-    """The scenario folder: the source tree's ``config/`` or the installed ``share/.../config``."""
-    here = Path(__file__).resolve()
-    candidates = [here.parents[2] / "config"]
+    """The scenario folder: the source tree's ``config/`` when this package runs from a source
+    checkout, else the installed ``share/predictive_drive/config`` found the ROS way, through the
+    ament index (``AMENT_PREFIX_PATH``: a colcon install, a ROS install), else under this
+    interpreter's prefix (a pip install into a venv)."""
     import sys
 
-    candidates.append(Path(sys.prefix) / "share" / "predictive_drive" / "config")
-    for c in candidates:
-        if c.is_dir():
-            return c
-    raise ConfigError(f"no scenario folder found; looked in {', '.join(map(str, candidates))}")
+    source = Path(__file__).resolve().parents[2] / "config"
+    if (source.parent / "package.xml").is_file() and source.is_dir():
+        return source
+    looked = [str(source)]
+    share = _ament_share()
+    if share is not None:
+        if (share / "config").is_dir():
+            return share / "config"
+        looked.append(str(share / "config"))
+    else:
+        looked.append("the ament index (AMENT_PREFIX_PATH): no predictive_drive")
+    prefix = Path(sys.prefix) / "share" / "predictive_drive" / "config"
+    if prefix.is_dir():
+        return prefix
+    looked.append(str(prefix))
+    raise ConfigError(f"no scenario folder found; looked in: {'; '.join(looked)}")
+
+
+def _ament_share() -> Path | None:
+    """The package's share directory from the ament index, or None where there is none."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+    except ImportError:  # a plain pip install without ROS
+        return None
+    try:
+        return Path(get_package_share_directory("predictive_drive"))
+    except LookupError:  # PackageNotFoundError is a KeyError
+        return None
 
 
 def scenario_names() -> list[str]:
