@@ -1,11 +1,13 @@
 """Recordings: rosbag2 MCAP layout, round trip, independent readers, truncated files."""
 
+import re
 import shutil
 
 import numpy as np
 import pytest
 import yaml
 
+from mcapcheck import ordering_faults
 from predictive_drive.api.report import report
 from predictive_drive.api.run import run, run_inprocess_to_bag
 from predictive_drive.bag import BagWriter, read_bag
@@ -19,10 +21,14 @@ pytestmark = pytest.mark.core
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory, im_short):
+    """0.06 s of im_short with a strategy switch at 0.03 s (so every bag topic has messages)."""
     out = tmp_path_factory.mktemp("bags") / "run1"
     sc = load_scenario("im_short", duration=0.06)
-    n = run_inprocess_to_bag(sc, out)
+    n = run_inprocess_to_bag(sc, out, switches=SWITCH)
     return out, sc, n
+
+
+SWITCH = [(600, "mptc")]
 
 
 def test_bag_directory_layout_and_metadata(recorded):
@@ -42,7 +48,7 @@ def test_bag_directory_layout_and_metadata(recorded):
 def test_round_trip_equals_the_in_memory_run(recorded, im_short):
     out, sc, n = recorded
     trace, info = read_bag(out)
-    direct = run_inprocess(sc)
+    direct = run_inprocess(sc, switches=SWITCH)
     assert info.complete and trace.steps == n == direct.steps
     np.testing.assert_array_equal(trace.state, direct.state)
     np.testing.assert_array_equal(trace.reference, direct.reference)
@@ -77,6 +83,18 @@ def test_mcap_follows_rosbag2_conventions(recorded):
     assert "serialized_metadata" in meta["rosbag2"]
     assert meta["predictive_drive"]["scenario"] == "im_short"
     assert "ros__parameters" in meta["predictive_drive"]["scenario_yaml"]
+    # as rosbag2 writes it: one schema per type, infinite durations as RMW_DURATION_INFINITE
+    assert len(summary.schemas) == len({t.type for t in BAG_TOPICS.values()})
+    infinite = {"sec": 9223372036, "nsec": 854775807}
+    for ch in summary.channels.values():
+        (qos,) = yaml.safe_load(ch.metadata["offered_qos_profiles"])
+        assert qos["deadline"] == qos["lifespan"] == qos["liveliness_lease_duration"] == infinite
+
+
+def test_messages_are_written_in_log_time_order_with_sequences_per_channel(recorded):
+    out, _, _ = recorded
+    backwards, bad_seq, n = ordering_faults(out / "run1_0.mcap")
+    assert n > 3000 and backwards == 0 and bad_seq == []
 
 
 def test_independent_reader_rosbags_decodes_every_topic(recorded):
@@ -154,9 +172,10 @@ def test_switch_is_visible_in_recording(tmp_path):
 
 @pytest.fixture(scope="module")
 def long_recording(tmp_path_factory):
-    """1.2 s of im_short: two /diagnostics periods (1 s, then the last 0.2 s)."""
+    """0.25 s of im_short: three /diagnostics periods (0.1 s, 0.1 s, then the last 0.05 s),
+    then the run's outcome."""
     out = tmp_path_factory.mktemp("bags") / "long"
-    run_inprocess_to_bag(load_scenario("im_short", duration=1.2), out)
+    run_inprocess_to_bag(load_scenario("im_short", duration=0.25), out)
     trace, _ = read_bag(out)
     return out, trace
 
@@ -186,36 +205,73 @@ def test_joint_states_carry_the_traced_shaft_values(long_recording):
     np.testing.assert_allclose(stamps, tr.col("state", "t")[k], rtol=0, atol=1e-9)
 
 
+def _figures(tr, k0, k1):
+    s = slice(k0, k1)
+    te = tr.col("state", "torque")[s]
+    psi = np.hypot(tr.col("state", "psi_alpha")[s], tr.col("state", "psi_beta")[s])
+    return {
+        "t_rmse": np.sqrt(np.mean((te - tr.col("reference", "torque_ref")[s]) ** 2)),
+        "psi_rmse": np.sqrt(np.mean((psi - tr.col("reference", "flux_ref")[s]) ** 2)),
+        "torque_estimate_rmse": np.sqrt(np.mean((tr.col("command", "torque_est")[s] - te) ** 2)),
+        "speed_rmse": np.sqrt(
+            np.mean((tr.col("state", "omega_m")[s] - tr.col("reference", "speed_ref")[s]) ** 2)
+        ),
+        "f_ave_hz": tr.col("state", "transitions")[s].sum() / (6 * (k1 - k0) * tr.ts),
+    }
+
+
 def test_diagnostics_values_equal_the_trace_figures(long_recording):
     """/diagnostics, decoded by the independent reader, against figures computed here from the
-    trace over the same steps (the first 1 s, then the rest): a wrong index in the running
-    metrics fails here."""
+    trace over the same steps (every 0.1 s of simulated time, then the rest), and the last
+    message the whole run's outcome: a wrong index in the running metrics fails here. Counts
+    are integers; /drive/metrics carries the same figures as numbers."""
     bag, tr = long_recording
     msgs = _rosbags_messages(bag, "/diagnostics")
-    assert len(msgs) == 2
-    ts = tr.ts
-    bounds = [(0, 20000), (20000, tr.steps)]
-    for (_, msg), (k0, k1) in zip(msgs, bounds):
+    numeric = _rosbags_messages(bag, "/drive/metrics")
+    assert len(msgs) == 4 and len(numeric) == 3
+    bounds = [(0, 2000), (2000, 4000), (4000, tr.steps), (0, tr.steps)]
+    fields = numeric[0][1].layout.dim[0].label.split(",")
+    for i, ((_, msg), (k0, k1)) in enumerate(zip(msgs, bounds)):
         (status,) = msg.status
         values = {kv.key: kv.value for kv in status.values}
-        s = slice(k0, k1)
-        te = tr.col("state", "torque")[s]
-        psi = np.hypot(tr.col("state", "psi_alpha")[s], tr.col("state", "psi_beta")[s])
-        want = {
-            "t_rmse": np.sqrt(np.mean((te - tr.col("reference", "torque_ref")[s]) ** 2)),
-            "psi_rmse": np.sqrt(np.mean((psi - tr.col("reference", "flux_ref")[s]) ** 2)),
-            "torque_estimate_rmse": np.sqrt(
-                np.mean((tr.col("command", "torque_est")[s] - te) ** 2)
-            ),
-            "speed_rmse": np.sqrt(
-                np.mean((tr.col("state", "omega_m")[s] - tr.col("reference", "speed_ref")[s]) ** 2)
-            ),
-            "f_ave_hz": tr.col("state", "transitions")[s].sum() / (6 * (k1 - k0) * ts),
-        }
-        for key, value in want.items():
+        for key, value in _figures(tr, k0, k1).items():
             assert float(values[key]) == pytest.approx(value, rel=1e-9, abs=1e-12), key
-        assert float(values["steps"]) == k1
+            if i < 3:
+                assert float(values[key]) == numeric[i][1].data[fields.index(key)]
+        assert values["steps"] == str(k1) and values["k"] == str(k1 - 1)
         assert values["strategy"] == "db_mptc"
+        if i < 3:
+            assert status.level == 0 and status.message == f"running: {k1} of 5000 steps"
+    final = msgs[-1][1].status[0]
+    assert final.level == 0 and final.message.startswith(
+        "complete: 5000 steps; over the run T_e RMSE"
+    )
+    assert {kv.key: kv.value for kv in final.values}["steps_planned"] == "5000"
+
+
+def test_the_outcome_of_an_interrupted_run_is_an_error(tmp_path, monkeypatch):
+    """Ctrl-C in the middle: the bag closes with every step taken, and its last /diagnostics
+    says ERROR with the steps missing."""
+    from predictive_drive.core import runner
+
+    real = runner.run_inprocess
+
+    def interrupted(sc, **kw):
+        def stop(k):
+            if k >= 1500:
+                raise KeyboardInterrupt
+
+        return real(sc, **{**kw, "progress": stop})
+
+    monkeypatch.setattr("predictive_drive.api.run.run_inprocess", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_inprocess_to_bag(load_scenario("im_short", duration=0.25), tmp_path / "cut")
+    (_, msg), *_ = reversed(_rosbags_messages(tmp_path / "cut", "/diagnostics"))
+    (status,) = msg.status
+    done = re.match(r"interrupted: (\d+) of 5000 steps; over the run T_e RMSE", status.message)
+    assert status.level == 2 and done and 1500 <= int(done[1]) < 5000
+    meta = yaml.safe_load((tmp_path / "cut" / "metadata.yaml").read_text())
+    assert meta["rosbag2_bagfile_information"]["custom_data"]["outcome"].startswith("ERROR: ")
 
 
 def test_a_record_of_another_layout_is_read_by_field_name():

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mcapcheck import ordering_faults
+from predictive_drive.api.report import report
 from predictive_drive.api.run import run
 from predictive_drive.bag import read_bag
 from predictive_drive.config import load_scenario
@@ -162,6 +164,21 @@ def test_timed_switch_through_parameter_service(tmp_path, engine):
     assert first == 1000  # 0.05 s / 50 µs
     assert np.all(s[:first] == names.index("mptc"))
     assert np.all(s[first:] == names.index("db_mptc"))  # one clean switch at a step boundary
+    # the switch leaves a trace: the controller's parameter event (set ahead of its step, which
+    # the controller then waits for), the strategies' spans in the metadata and the report
+    rep = report(r.bag)
+    assert [(e["node"], e["changed"]) for e in rep["parameter_events"]] == [
+        ("/drive/torque_controller", {"strategy": "db_mptc"})
+    ]
+    assert rep["parameter_events"][0]["t"] <= 0.05
+    spans = [(d["strategy"], d["first"], d["last"]) for d in rep["strategies"]]
+    assert spans == [("mptc", 0, 999), ("db_mptc", 1000, 7999)]
+    assert "strategies" in read_bag(r.bag)[1].custom  # from the metadata, not the commands
+    assert rep["outcome"].startswith("OK: complete: 8000 steps")
+    # written in log-time order (the graph delivers command k after state k+1), sequence
+    # numbers per channel
+    backwards, bad_seq, n = ordering_faults(next(r.bag.glob("*.mcap")))
+    assert (backwards, bad_seq) == (0, []) and n > 24000
 
 
 def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_run, tmp_path):
@@ -207,6 +224,12 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     assert f"interrupted: the bag {bag.resolve()} was closed with {tr.steps} steps" in err
     s = tr.col("command", "strategy").astype(int)
     assert tr.strategy_names[s[0]] == "mptc" and tr.strategy_names[s[-1]] == "db_mptc"
+    assert [e.changed for _, e in info.events] == [(("strategy", "db_mptc"),)]
+    # the outcome counts the steps whose three records came (the trace also needs state k+1)
+    stopped = re.fullmatch(
+        r"ERROR: stopped: (\d+) of 600000 steps; over the run .*", info.custom["outcome"]
+    )
+    assert stopped and int(stopped[1]) in (tr.steps, tr.steps + 1)
 
 
 def assert_placed(nodes: dict[str, int]) -> None:
@@ -474,3 +497,48 @@ def test_a_full_disk_under_the_graph_is_said(tmp_path):
     assert r.returncode == 2, r.stderr
     assert "node metrics_logger" in r.stderr and "File too large" in r.stderr
     assert "was closed with" not in r.stderr
+
+
+def test_nodes_stopped_as_ros2_launch_stops_them_end_cleanly(tmp_path):
+    """SIGINT to every node mid-run (what `ros2 launch` sends on Ctrl-C): each exits 0 (no
+    "process has died"), says nothing on the way out (no rosout or traceback noise but the
+    logger's last line), and the bag is closed, its outcome an ERROR naming the steps done."""
+    from predictive_drive.ros.launcher import START_ORDER, isolated_domain
+
+    procs = {}
+    with isolated_domain() as domain:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        params = Path(__file__).parents[1] / "config" / "im_short.yaml"
+        try:
+            for name in START_ORDER:
+                procs[name] = subprocess.Popen(
+                    [sys.executable, "-m", f"predictive_drive.ros.{name}_node", "--ros-args",
+                     "--params-file", str(params), "-p", "duration:=30.0",
+                     *(["-p", f"bag:={tmp_path / 'b'}"] if name == "metrics_logger" else [])],
+                    env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                    text=True, start_new_session=True,
+                )  # fmt: skip
+            deadline = time.monotonic() + 60
+            while not list(tmp_path.glob("b/*.mcap")) or (
+                os.path.getsize(next(tmp_path.glob("b/*.mcap"))) < 300_000
+            ):
+                assert time.monotonic() < deadline, "the run did not start"
+                time.sleep(0.2)
+            for p in procs.values():
+                os.kill(p.pid, signal.SIGINT)
+            outs = {n: p.communicate(timeout=60)[0] for n, p in procs.items()}
+        finally:
+            for p in procs.values():
+                if p.poll() is None:
+                    p.kill()
+                    p.wait(timeout=10)
+    assert {n: p.returncode for n, p in procs.items()} == dict.fromkeys(START_ORDER, 0), outs
+    for name, out in outs.items():
+        lines = [ln for ln in out.splitlines() if ln.strip()]
+        if name == "metrics_logger":
+            assert len(lines) == 2 and "bag closed" in lines[-1], out
+        else:
+            assert lines == [], (name, out)
+    tr, info = read_bag(tmp_path / "b")
+    assert info.complete and 0 < tr.steps < 600000
+    assert info.custom["outcome"].startswith("ERROR: stopped: ")

@@ -10,6 +10,8 @@ chunk; :func:`read_bag` falls back to a streaming read for such files.
 
 from __future__ import annotations
 
+import dataclasses
+import heapq
 import json
 import os
 import shutil
@@ -30,7 +32,16 @@ from . import __version__
 from .core.signals import STATE_INDEX
 from .core.trace import RECORDS, Trace, TraceBuilder
 from .errors import BagError
-from .interface import BAG_TOPICS, CODECS, RECORD_TOPICS, TOPICS, message_definition, type_hash
+from .interface import (
+    BAG_TOPICS,
+    CODECS,
+    RECORD_TOPICS,
+    TOPICS,
+    ParameterEvent,
+    decode_parameter_event,
+    message_definition,
+    type_hash,
+)
 
 __all__ = [
     "LOGS_DIR",
@@ -135,21 +146,29 @@ class BagWriter:
         self._writer.start(profile="ros2", library=f"predictive_drive {__version__}")
         self._channels: dict[str, int] = {}
         self._counts: dict[str, int] = {}
-        self._first = None
+        self._seq: dict[str, int] = {}  #: last sequence number by channel (rosbag2: per topic)
+        self._held: list[tuple[int, int, str, bytes]] = []  #: heap of (log time, arrival, ...)
+        self._arrivals = 0
+        self._first: int | None = None
         self._last = 0
         self._closed = False
         self._failed = ""
+        #: rosbag2's custom_data: written into metadata.yaml and the rosbag2 record on close
+        self.custom_data: dict[str, str] = {}
+        schemas: dict[str, int] = {}  # one schema per type, as rosbag2 writes it
         for key, topic in BAG_TOPICS.items():
-            schema = self._writer.register_schema(
-                topic.type, "ros2msg", message_definition(topic.type).encode()
-            )
+            if topic.type not in schemas:
+                schemas[topic.type] = self._writer.register_schema(
+                    topic.type, "ros2msg", message_definition(topic.type).encode()
+                )
             self._channels[key] = self._writer.register_channel(
                 topic.name,
                 "cdr",
-                schema,
+                schemas[topic.type],
                 {"offered_qos_profiles": _qos_yaml(key), "topic_type_hash": type_hash(topic.type)},
             )
             self._counts[key] = 0
+            self._seq[key] = 0
         if stamp:
             info = {**info, "package_version": __version__, "created_unix_s": f"{time.time():.3f}"}
         self._writer.add_metadata(
@@ -157,25 +176,46 @@ class BagWriter:
         )
         self._file.flush()  # a file cut short still says what it is
         self._write_metadata_yaml()  # provisional, rewritten on close
-        self._seq = 0
 
     def write(self, topic_key: str, t_ns: int, data: bytes) -> None:
-        """One serialized message; ``t_ns`` (simulated time) is both log and publish time.
-        BagError when the file cannot take it (a full disk): the bag is then incomplete."""
+        """One serialized message, written now; ``t_ns`` (simulated time) is both log and
+        publish time. BagError when the file cannot take it (a full disk): the bag is then
+        incomplete. Messages written in log-time order make a file readers need not sort; a
+        writer that receives them out of order uses :meth:`hold` and :meth:`release`."""
+        seq = self._seq[topic_key] + 1
         try:
-            self._writer.add_message(self._channels[topic_key], t_ns, data, t_ns, self._seq)
+            self._writer.add_message(self._channels[topic_key], t_ns, data, t_ns, seq)
         except OSError as e:
             self._failed = f"{e.strerror or e}"
             raise BagError(
                 f"writing the bag {self.directory} failed ({self._failed}); it holds what was "
                 f"written before, up to its last complete chunk"
             ) from None
-        self._seq += 1
+        self._seq[topic_key] = seq
         self._counts[topic_key] += 1
         if self._first is None:
             self._first = t_ns
         if t_ns > self._last:
             self._last = t_ns
+
+    def hold(self, topic_key: str, t_ns: int, data: bytes) -> None:
+        """One message to be written in log-time order once :meth:`release` passes its time
+        (messages of equal time keep their arrival order); :meth:`close` writes what is held."""
+        self._arrivals += 1
+        heapq.heappush(self._held, (t_ns, self._arrivals, topic_key, data))
+
+    def release(self, through_ns: int) -> None:
+        """Write the held messages logged at or before ``through_ns``: the caller knows that no
+        message of an earlier time is still to come."""
+        held = self._held
+        while held and held[0][0] <= through_ns:
+            t_ns, _, key, data = heapq.heappop(held)
+            self.write(key, t_ns, data)
+
+    @property
+    def held(self) -> int:
+        """Messages held for :meth:`release`."""
+        return len(self._held)
 
     def close(self) -> None:
         """Index, footer and metadata.yaml; BagError if they cannot be written (the file then
@@ -184,6 +224,8 @@ class BagWriter:
             return
         self._closed = True
         try:
+            if not self._failed:
+                self.release(2**63)  # what is held: nothing more will come
             self._finish()
         except OSError as e:
             try:
@@ -254,7 +296,7 @@ class BagWriter:
                         "message_count": count,
                     }
                 ],
-                "custom_data": None,
+                "custom_data": dict(self.custom_data) or None,
                 "ros_distro": "jazzy",
             }
         }
@@ -301,6 +343,11 @@ class BagInfo:
     info: dict[str, str]
     counts: dict[str, int]
     complete: bool  #: False if the file had to be read as a truncated stream
+    #: rosbag2's custom_data, written when the bag closed (``strategies``: the spans each
+    #: strategy was in force, JSON; ``outcome``: the run's final diagnostics); {} if it did not
+    custom: dict[str, str] = dataclasses.field(default_factory=dict)
+    #: the accepted parameter changes recorded on /parameter_events, with their log times (ns)
+    events: tuple[tuple[int, ParameterEvent], ...] = ()
 
 
 def mcap_file(bag: str | Path) -> Path:
@@ -378,10 +425,13 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
     rows: dict[str, dict[int, tuple[float, ...]]] = {rec: {} for rec in RECORDS}
     counts: dict[str, int] = {}
+    events: list[tuple[int, ParameterEvent]] = []
     for channel, message in msgs:
         counts[channel.topic] = counts.get(channel.topic, 0) + 1
         rec = by_name.get(channel.topic)
         if rec is None:
+            if channel.topic == TOPICS["parameter_events"].name:
+                events.append((message.log_time, decode_parameter_event(message.data)))
             continue
         values = CODECS[RECORD_TOPICS[rec]].decode(message.data)
         rows[rec][int(values[K])] = values
@@ -404,7 +454,19 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
         builder.add("reference", rows["reference"][k])
     for k in range(n):
         builder.add("command", rows["command"][k])
-    return builder.build(), BagInfo(path, info, counts, complete)
+    custom = _custom_data(meta.get("rosbag2", {}))
+    events.sort(key=lambda e: e[0])
+    return builder.build(), BagInfo(path, info, counts, complete, custom, tuple(events))
+
+
+def _custom_data(rosbag2: dict[str, str]) -> dict[str, str]:
+    """custom_data of the rosbag2 metadata record ({} for a bag that never closed)."""
+    try:
+        serialized = yaml.safe_load(rosbag2.get("serialized_metadata", "")) or {}
+    except yaml.YAMLError:
+        return {}
+    custom = serialized.get("custom_data") if isinstance(serialized, dict) else None
+    return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else {}
 
 
 @dataclass(frozen=True)

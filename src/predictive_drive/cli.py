@@ -109,6 +109,18 @@ def _print_metrics(d: dict[str, Any]) -> None:
     if any(m["utilization"]):
         util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m["utilization"]))
         print(f"  {'vectors':<11}{util}")
+    spans = d.get("strategies", [])
+    if len(spans) > 1:
+        for sp in spans:
+            print(
+                f"  {'strategy':<11}{sp['strategy']:>16}   steps {sp['first']}-{sp['last']} "
+                f"({sp['t_start']:g}-{sp['t_end']:g} s)"
+            )
+    if d.get("outcome"):
+        print(f"  {'outcome':<11}{d['outcome']}")
+    for e in d.get("parameter_events", []):
+        changes = ", ".join(f"{k} = {v}" for k, v in e["changed"].items())
+        print(f"  {'parameter':<11}{e['t']:>14.6g} s   {e['node']}: {changes}")
     for st in d.get("load_steps", []):
         print(
             f"  load {st['load_torque']:g} N·m from {st['t_start']:g} s: current angle "

@@ -37,9 +37,12 @@ __all__ = [
     "Qos",
     "Topic",
     "decode_multiarray",
+    "ParameterEvent",
+    "decode_parameter_event",
     "encode_clock",
     "encode_diagnostics",
     "encode_joint_state",
+    "encode_parameter_event",
     "message_definition",
     "node_name",
     "type_hash",
@@ -61,6 +64,13 @@ def node_name(name: str) -> str:
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 #: labels of /drive/recorded: every step up to k is recorded, k·Ts is t, messages written so far
 RECORDED_FIELDS = ("k", "t", "messages")
+#: labels of /drive/metrics: the running figures of /diagnostics as numbers, one message per
+#: diagnostics period: last step k and its time t, steps so far, the period's RMS errors (N·m,
+#: Wb, N·m, rad/s), mean switching frequency (Hz), strategy index, diagnostic level (0 OK, 1 WARN)
+METRICS_FIELDS = (
+    "k", "t", "steps", "t_rmse", "psi_rmse", "torque_estimate_rmse", "speed_rmse", "f_ave_hz",
+    "strategy", "level",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -74,7 +84,7 @@ class Qos:
 
     def rosbag2(self) -> dict[str, object]:
         """rosbag2 (metadata version 9) form of one offered QoS profile."""
-        infinite = {"sec": 2147483647, "nsec": 4294967295}
+        infinite = {"sec": 9223372036, "nsec": 854775807}  # RMW_DURATION_INFINITE, as rosbag2
         return {
             "history": self.history,
             "depth": self.depth,
@@ -93,6 +103,8 @@ LOCKSTEP_QOS = Qos("reliable", "volatile", "keep_all", 0)
 #: decimated tool topics: reliable (so the recorder loses none; best-effort readers such as
 #: rclpy's time source still match) and a deep enough history for a slow reader
 TOOLS_QOS = Qos("reliable", "volatile", "keep_last", 1000)
+#: rclpy's qos_profile_parameter_events (what every node's /parameter_events publisher offers)
+PARAMETER_EVENTS_QOS = Qos("reliable", "volatile", "keep_last", 1000)
 
 
 @dataclass(frozen=True)
@@ -113,11 +125,19 @@ TOPICS: dict[str, Topic] = {
     "joint_states": Topic(f"{NAMESPACE}/joint_states", "sensor_msgs/msg/JointState", TOOLS_QOS),
     "clock": Topic("/clock", "rosgraph_msgs/msg/Clock", TOOLS_QOS),
     "diagnostics": Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", TOOLS_QOS),
+    "metrics": Topic(f"{NAMESPACE}/metrics", FLOAT64_MULTI_ARRAY, TOOLS_QOS, METRICS_FIELDS),
+    # accepted parameter changes of the drive's nodes, as rclpy publishes them (the logger
+    # records the changes, not the declarations at start-up)
+    "parameter_events": Topic(
+        "/parameter_events", "rcl_interfaces/msg/ParameterEvent", PARAMETER_EVENTS_QOS
+    ),
     # the recorder's progress: every step up to k is in the bag (the plant's back-pressure)
     "recorded": Topic(
         f"{NAMESPACE}/recorded", FLOAT64_MULTI_ARRAY, TOOLS_QOS, RECORDED_FIELDS, recorded=False
     ),
 }
+#: the plant's decimated tool topics (besides the per-step records)
+TOOL_TOPICS = ("clock", "joint_states")
 #: the topics a run's bag holds
 BAG_TOPICS = {key: t for key, t in TOPICS.items() if t.recorded}
 #: record name (core.trace.RECORDS) → topic key, for the three per-step signal topics
@@ -150,6 +170,14 @@ class _Cdr:
 
     def u8(self, v: int) -> None:
         self.buf += struct.pack("<B", v)
+
+    def i64(self, v: int) -> None:
+        self._align(8)
+        self.buf += struct.pack("<q", v)
+
+    def f64(self, v: float) -> None:
+        self._align(8)
+        self.buf += struct.pack("<d", v)
 
     def i32(self, v: int) -> None:
         self._align(4)
@@ -184,6 +212,13 @@ def stamp(t: float) -> tuple[int, int]:
 
 def stamp_ns(t: float) -> int:
     return round(t * 1e9)
+
+
+def tool_stamp_ns(data: bytes) -> int:
+    """The time of a /clock or /drive/joint_states message: its first field (clock /
+    header.stamp), right after the CDR header."""
+    sec, nsec = struct.unpack_from("<iI", data, 4)
+    return int(sec) * 1_000_000_000 + int(nsec)
 
 
 class MultiArrayCodec:
@@ -223,7 +258,7 @@ class MultiArrayCodec:
 
 
 CODECS: dict[str, MultiArrayCodec] = {
-    key: MultiArrayCodec(TOPICS[key].fields) for key in (*RECORD_TOPICS, "recorded")
+    key: MultiArrayCodec(TOPICS[key].fields) for key in (*RECORD_TOPICS, "recorded", "metrics")
 }
 
 
@@ -283,8 +318,9 @@ def encode_joint_state(t: float, position: float, velocity: float, effort: float
     return bytes(w.buf)
 
 
-#: diagnostic_msgs/DiagnosticStatus.ERROR (the running metrics report OK = 0 or WARN = 1)
-ERROR = 2
+#: diagnostic_msgs/DiagnosticStatus levels
+OK, WARN, ERROR = 0, 1, 2
+LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR"}
 
 
 def encode_diagnostics(
@@ -310,6 +346,93 @@ def encode_diagnostics(
 def fmt(v: float) -> str:
     """A diagnostics value: repr of the float (round-trips exactly), 'nan' where undefined."""
     return "nan" if math.isnan(v) else repr(float(v))
+
+
+# rcl_interfaces/msg/ParameterType
+_PARAMETER_TYPES = {bool: 1, int: 2, float: 3, str: 4}
+
+
+def encode_parameter_event(t: float, node: str, changed: list[tuple[str, object]]) -> bytes:
+    """rcl_interfaces/ParameterEvent: ``node``'s parameters ``changed`` at ``t`` (bool, int,
+    float or str values), as rclpy publishes it after an accepted set."""
+    w = _Cdr()
+    w.time(t)
+    w.string(node)
+    w.u32(0)  # new_parameters
+    w.u32(len(changed))
+    for name, value in changed:
+        kind = _PARAMETER_TYPES[type(value)]
+        w.string(name)
+        w.u8(kind)
+        w.u8(bool(value) if kind == 1 else 0)
+        w.i64(int(value) if kind == 2 else 0)  # type: ignore[call-overload]
+        w.f64(float(value) if kind == 3 else 0.0)  # type: ignore[arg-type]
+        w.string(str(value) if kind == 4 else "")
+        for _ in range(5):  # byte, bool, integer, double and string arrays: empty
+            w.u32(0)
+    w.u32(0)  # deleted_parameters
+    return bytes(w.buf)
+
+
+@dataclass(frozen=True)
+class ParameterEvent:
+    stamp_ns: int
+    node: str
+    new: tuple[tuple[str, object], ...]  #: (name, value) of parameters declared
+    changed: tuple[tuple[str, object], ...]  #: (name, value) of parameters set
+
+
+def decode_parameter_event(data: bytes) -> ParameterEvent:
+    """The node and the new and changed (name, value) pairs of a ParameterEvent (array values
+    as tuples; deleted parameters are not read). BagError if the bytes are not one."""
+    off = 4
+
+    def align(n: int) -> None:
+        nonlocal off
+        off += (-(off - 4)) % n
+
+    def unpack(code: str, size: int) -> object:
+        nonlocal off
+        align(size)
+        (v,) = struct.unpack_from("<" + code, data, off)
+        off += size
+        return v
+
+    def string() -> str:
+        nonlocal off
+        n = int(unpack("I", 4))  # type: ignore[call-overload]
+        s = data[off : off + n - 1].decode()
+        off += n
+        return s
+
+    def seq(read: object) -> tuple[object, ...]:
+        n = int(unpack("I", 4))  # type: ignore[call-overload]
+        return tuple(read() for _ in range(n))  # type: ignore[operator]
+
+    def parameter() -> tuple[str, object]:
+        name = string()
+        kind = int(unpack("B", 1))  # type: ignore[call-overload]
+        values: list[object] = [
+            bool(unpack("B", 1)),
+            unpack("q", 8),
+            unpack("d", 8),
+            string(),
+            seq(lambda: unpack("B", 1)),
+            seq(lambda: bool(unpack("B", 1))),
+            seq(lambda: unpack("q", 8)),
+            seq(lambda: unpack("d", 8)),
+            seq(string),
+        ]
+        return name, (values[kind - 1] if 1 <= kind <= 9 else None)
+
+    try:
+        sec, nsec = int(unpack("i", 4)), int(unpack("I", 4))  # type: ignore[call-overload]
+        node = string()
+        new = seq(parameter)
+        changed = seq(parameter)
+    except (struct.error, UnicodeDecodeError) as e:
+        raise BagError(f"not a ParameterEvent: {e}") from None
+    return ParameterEvent(sec * 1_000_000_000 + nsec, node, new, changed)  # type: ignore[arg-type]
 
 
 # --- message definitions (for MCAP schemas) ----------------------------------------------------

@@ -8,9 +8,12 @@ engines record the same bytes.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,32 +22,44 @@ from .config import load_scenario_text
 from .core.control import strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
-from .core.signals import STATE_INDEX
+from .core.signals import COMMAND_INDEX, STATE_INDEX
 from .core.timebase import every_steps
 from .interface import (
     CLOCK_PERIOD,
     CODECS,
     ERROR,
+    LEVEL_NAMES,
+    OK,
     RECORD_TOPICS,
+    TOOL_TOPICS,
+    TOPICS,
+    WARN,
     encode_clock,
     encode_diagnostics,
     encode_joint_state,
+    encode_parameter_event,
     fmt,
+    node_name,
     stamp_ns,
+    tool_stamp_ns,
 )
 
 __all__ = [
     "DIAGNOSTICS_NAME",
     "RunRecorder",
+    "StrategySpan",
     "bag_info",
     "default_bag_dir",
     "diagnostics_message",
     "scenario_of",
+    "spans_from_json",
+    "strategy_spans",
     "tool_every",
     "tool_messages",
 ]
 
 DIAGNOSTICS_NAME = "predictive_drive: drive"
+K = STATE_INDEX.k  #: the step: the first field of every per-step record
 T = STATE_INDEX.t  #: simulated time: the second field of every per-step record
 
 
@@ -92,22 +107,87 @@ def tool_messages(state: tuple[float, ...], every: int) -> list[tuple[str, int, 
     return [("clock", ns, encode_clock(t)), ("joint_states", ns, joint)]
 
 
+#: diagnostics values that are counts, written as integers
+_COUNTS = ("k", "steps", "steps_planned")
+
+
 def diagnostics_message(
     snap: dict[str, float], level: int, message: str, strategy_names: tuple[str, ...]
 ) -> tuple[int, bytes]:
+    """The /diagnostics message of a snapshot: counts as integers, figures as exact floats,
+    the strategy by name."""
     s = int(snap.get("strategy", -1))
     name = strategy_names[s] if 0 <= s < len(strategy_names) else ""
-    values = [(key, fmt(v)) for key, v in snap.items() if key not in ("t", "strategy")]
+    values = [
+        (key, str(int(v)) if key in _COUNTS else fmt(v))
+        for key, v in snap.items()
+        if key not in ("t", "strategy")
+    ]
     values.append(("strategy", name))
     t = snap["t"]
     return stamp_ns(t), encode_diagnostics(t, [(level, DIAGNOSTICS_NAME, message, values)])
 
 
-class RunRecorder:
-    """Writes a run into a :class:`BagWriter` and keeps the running metrics.
+@dataclass(frozen=True)
+class StrategySpan:
+    """A strategy in force over steps ``first``..``last`` (inclusive) of a run."""
 
-    ``publish(topic_key, data)`` (optional) also sends the diagnostics it produces (the node's
-    publisher); the in-process engine records only.
+    strategy: str
+    first: int
+    last: int
+
+    def describe(self, ts: float) -> str:
+        return (
+            f"{self.strategy} steps {self.first}-{self.last} "
+            f"({self.first * ts:.6g}-{(self.last + 1) * ts:.6g} s)"
+        )
+
+
+def spans_to_json(spans: list[StrategySpan]) -> str:
+    return json.dumps([dataclasses.asdict(s) for s in spans])
+
+
+def spans_from_json(text: str) -> list[StrategySpan]:
+    return [StrategySpan(**d) for d in json.loads(text)]
+
+
+def extend_spans(spans: list[StrategySpan], k: int, strategy: str) -> bool:
+    """Add step ``k`` under ``strategy`` to ``spans``; True when it opens a new span."""
+    if spans and spans[-1].strategy == strategy and spans[-1].last == k - 1:
+        spans[-1] = StrategySpan(strategy, spans[-1].first, k)
+        return False
+    spans.append(StrategySpan(strategy, k, k))
+    return True
+
+
+def strategy_spans(
+    strategy: Sequence[float], names: tuple[str, ...], k0: int = 0
+) -> list[StrategySpan]:
+    """The spans of a run's per-step strategy index (the command's ``strategy`` field)."""
+    spans: list[StrategySpan] = []
+    for k, s in enumerate(strategy, start=k0):
+        extend_spans(spans, k, strategy_name(names, s))
+    return spans
+
+
+def strategy_name(names: tuple[str, ...], index: float) -> str:
+    return names[int(index)] if 0 <= index < len(names) else "?"
+
+
+#: the per-step records and how often each comes (in steps); the node path adds the plant's tool
+#: topics, which arrive on topics of their own
+_STREAMS = ("state", "reference", "command")
+
+
+class RunRecorder:
+    """Writes a run into a :class:`BagWriter` in log-time order and keeps the running metrics.
+
+    The graph delivers each topic in order but gives no order across topics (command k arrives
+    after state k+1): every message is held until each topic the recorder waits on has passed
+    its time, so the file reads in log-time order (what rosbag2's writer and MCAP readers expect).
+    ``publish(topic_key, data)`` (optional) also sends what it produces (/diagnostics,
+    /drive/metrics: the node's publishers); the in-process engine records only. ``steps``: the
+    run's planned steps, for the progress in /diagnostics and the final outcome.
     """
 
     def __init__(
@@ -115,55 +195,133 @@ class RunRecorder:
         writer: BagWriter,
         *,
         ts: float,
+        steps: int,
         torque_limit: float,
         strategy_names: tuple[str, ...],
         record_tools: bool,
         publish: Callable[[str, bytes], None] | None = None,
     ) -> None:
+        """``record_tools``: the in-process engine, where the recorder also writes what the
+        plant and the controller node would publish: /clock, /drive/joint_states, and a
+        parameter event when the strategy changes."""
         self.writer = writer
         self.live = LiveMetrics(ts=ts, torque_limit=torque_limit)
         self.strategy_names = strategy_names
+        self.ts = ts
+        self.steps = steps
         self._every = tool_every(ts)
-        self._tools = record_tools
+        self._tools = self._events = record_tools
         self._publish = publish
         self.last_t = 0.0
+        #: the last log time seen on each topic the recorder waits on (each comes in order)
+        self._seen = dict.fromkeys(_STREAMS if record_tools else (*_STREAMS, *TOOL_TOPICS), -1)
+        self._released = -1
+        self._warned = ""
+        self._finished = False
+        self.spans: list[StrategySpan] = []
 
     def record(self, record: str, row: tuple[float, ...]) -> None:
         """In-process path: encode, write, and the plant's tool messages with each state."""
         key = RECORD_TOPICS[record]
-        self.writer.write(key, stamp_ns(row[T]), CODECS[key].encode(row))
+        ns = stamp_ns(row[T])
+        self.writer.hold(key, ns, CODECS[key].encode(row))
         if self._tools and record == "state":
-            for tkey, ns, data in tool_messages(row, self._every):
-                self.writer.write(tkey, ns, data)
-        self._feed(record, row)
+            for tkey, tns, data in tool_messages(row, self._every):
+                self.writer.hold(tkey, tns, data)
+        self._feed(record, row, ns)
 
     def record_raw(self, record: str, data: bytes) -> tuple[float, ...]:
         """Node path: write the bytes as received, decode for the running metrics."""
         key = RECORD_TOPICS[record]
         row = CODECS[key].decode(data)
-        self.writer.write(key, stamp_ns(row[T]), data)
-        self._feed(record, row)
+        ns = stamp_ns(row[T])
+        self.writer.hold(key, ns, data)
+        self._feed(record, row, ns)
         return row
 
-    def _feed(self, record: str, row: tuple[float, ...]) -> None:
-        self.last_t = max(self.last_t, row[T])
-        self._diagnose(self.live.add(record, row))
+    def record_tool(self, key: str, data: bytes) -> None:
+        """Node path: /clock or /drive/joint_states as the plant published it."""
+        ns = tool_stamp_ns(data)
+        self.writer.hold(key, ns, data)
+        self._advance(key, ns)
 
-    def finish(self) -> None:
-        """The last, partial diagnostics period (so even a short run reports its figures)."""
+    def record_event(self, data: bytes) -> None:
+        """An accepted parameter change (rcl_interfaces/ParameterEvent), logged at the time it
+        arrives on the simulated clock (the last step seen), as rosbag2 logs receive time."""
+        self.writer.hold("parameter_events", max(stamp_ns(self.last_t), self._released), data)
+
+    def _feed(self, record: str, row: tuple[float, ...], ns: int) -> None:
+        if row[T] > self.last_t:
+            self.last_t = row[T]
+        if record == "command":
+            self._span(int(row[K]), row[COMMAND_INDEX.strategy])
+        self._diagnose(self.live.add(record, row))
+        self._advance(record, ns)
+
+    def _advance(self, topic: str, ns: int) -> None:
+        self._seen[topic] = ns
+        through = min(self._seen.values())
+        if through > self._released:
+            self._released = through
+            self.writer.release(through)
+
+    def _span(self, k: int, index: float) -> None:
+        name = strategy_name(self.strategy_names, index)
+        if extend_spans(self.spans, k, name) and k > 0 and self._events:
+            # what the controller node publishes when its strategy parameter is set
+            t = k * self.ts
+            data = encode_parameter_event(t, node_name("torque_controller"), [("strategy", name)])
+            self.writer.hold("parameter_events", stamp_ns(t), data)
+
+    def finish(self, error: str = "") -> None:
+        """The last, partial diagnostics period, then the run's outcome: OK (or WARN, naming
+        what was wrong) when every planned step is recorded, ERROR with ``error`` or the steps
+        missing otherwise; the strategies in force go into the bag's metadata. Once."""
+        if self._finished:
+            return
+        self._finished = True
         self._diagnose(self.live.flush())
+        total = self.live.total() or {"k": -1.0, "t": self.last_t, "steps": 0.0}
+        done = int(total["steps"])
+        total = {**total, "steps_planned": float(self.steps)}
+        figures = (
+            f"; over the run T_e RMSE {total['t_rmse']:.4g} N·m, f_ave {total['f_ave_hz']:.5g} Hz"
+            if "t_rmse" in total
+            else ""
+        )
+        if error or done < self.steps:
+            level, message = ERROR, f"{error or 'stopped'}: {done} of {self.steps} steps{figures}"
+        elif self._warned:
+            level, message = WARN, f"complete: {done} steps{figures}; {self._warned}"
+        else:
+            level, message = OK, f"complete: {done} steps{figures}"
+        ns, data = diagnostics_message(total, level, message, self.strategy_names)
+        self.writer.hold("diagnostics", max(ns, self._released), data)
+        if self._publish is not None:
+            self._publish("diagnostics", data)
+        self.writer.custom_data["strategies"] = spans_to_json(self.spans)
+        self.writer.custom_data["outcome"] = f"{LEVEL_NAMES[level]}: {message}"
 
     def _diagnose(self, snap: dict[str, float] | None) -> None:
-        if snap is not None:
-            level, message = self.live.level(snap)
-            ns, data = diagnostics_message(snap, level, message, self.strategy_names)
-            self.writer.write("diagnostics", ns, data)
-            if self._publish is not None:
-                self._publish("diagnostics", data)
+        if snap is None:
+            return
+        level, wrong = self.live.level(snap)
+        if wrong and not self._warned:
+            self._warned = f"from {snap['t']:.6g} s: {wrong}"
+        message = wrong or f"running: {int(snap['steps'])} of {self.steps} steps"
+        ns, data = diagnostics_message(snap, level, message, self.strategy_names)
+        metrics = CODECS["metrics"].encode(
+            tuple(float(level) if f == "level" else snap[f] for f in TOPICS["metrics"].fields)
+        )
+        self.writer.hold("diagnostics", ns, data)
+        self.writer.hold("metrics", ns, metrics)
+        if self._publish is not None:
+            self._publish("diagnostics", data)
+            self._publish("metrics", metrics)
 
     def error(self, message: str) -> bytes:
         """Record (and return) an ERROR diagnostics status, e.g. when a peer went silent."""
         t = self.last_t
         data = encode_diagnostics(t, [(ERROR, DIAGNOSTICS_NAME, message, [])])
-        self.writer.write("diagnostics", stamp_ns(t), data)
+        self.writer.hold("diagnostics", max(stamp_ns(t), self._released), data)
         return data

@@ -14,9 +14,17 @@ from ..core.machines import Machine
 from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
 from ..core.trace import Trace
-from ..recording import scenario_of
+from ..recording import StrategySpan, scenario_of, spans_from_json, strategy_spans
 
-__all__ = ["Evaluation", "evaluate", "metrics_window", "report", "steps_of"]
+__all__ = [
+    "Evaluation",
+    "evaluate",
+    "metrics_window",
+    "report",
+    "steps_of",
+    "strategies_of",
+    "details_of",
+]
 
 
 @dataclass(frozen=True)
@@ -69,9 +77,8 @@ def report(bag: str | Path, *, figures: str | Path | None = None) -> dict[str, A
         "planned_steps": ev.scenario.run.steps,
         "complete": ev.info.complete,
         "metrics": ev.metrics.as_dict(),
+        **details_of(ev),
     }
-    if steps := steps_of(ev):
-        out["load_steps"] = steps
     if figures is not None:
         from ..reports.figures import Run, run_figures, save
 
@@ -79,6 +86,34 @@ def report(bag: str | Path, *, figures: str | Path | None = None) -> dict[str, A
         drawn = save(run_figures(Run(ev.trace, ev.scenario, label)), figures)
         out["figures"] = [str(p) for p in drawn]
     return out
+
+
+def details_of(ev: Evaluation) -> dict[str, Any]:
+    """What a recording says besides its metrics: the strategies in force and their steps, the
+    accepted parameter changes, the run's outcome, and (a PMSM) the load steps."""
+    ts = ev.trace.ts
+    out: dict[str, Any] = {
+        "strategies": [
+            {**dataclasses.asdict(s), "t_start": s.first * ts, "t_end": (s.last + 1) * ts}
+            for s in strategies_of(ev)
+        ],
+        "parameter_events": [
+            {"t": ns * 1e-9, "node": e.node, "changed": dict(e.changed)} for ns, e in ev.info.events
+        ],
+        "outcome": ev.info.custom.get("outcome", ""),
+    }
+    if steps := steps_of(ev):
+        out["load_steps"] = steps
+    return out
+
+
+def strategies_of(ev: Evaluation) -> list[StrategySpan]:
+    """The strategies in force and their steps: as the bag's metadata lists them, or, for a
+    recording that never closed (or predates the list), from its commands."""
+    if "strategies" in ev.info.custom:
+        return spans_from_json(ev.info.custom["strategies"])
+    tr = ev.trace
+    return strategy_spans(tr.col("command", "strategy"), tr.strategy_names)
 
 
 def steps_of(ev: Evaluation) -> list[dict[str, Any]]:

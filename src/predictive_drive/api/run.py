@@ -18,7 +18,7 @@ from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import ConfigError, Interrupted
 from ..recording import RunRecorder, bag_info, default_bag_dir
-from .report import evaluate, steps_of
+from .report import details_of, evaluate
 
 __all__ = ["ENGINES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
 
@@ -34,7 +34,7 @@ class RunResult:
     bag: Path
     wall_s: float
     metrics: Metrics
-    load_steps: list[dict[str, Any]]
+    details: dict[str, Any]  #: strategies, parameter events, outcome, load steps (see report)
 
     def as_dict(self) -> dict[str, Any]:
         out = {
@@ -45,9 +45,8 @@ class RunResult:
             "bag": str(self.bag),
             "wall_s": self.wall_s,
             "metrics": self.metrics.as_dict(),
+            **self.details,
         }
-        if self.load_steps:
-            out["load_steps"] = self.load_steps
         return out
 
 
@@ -81,11 +80,19 @@ def run_inprocess_to_bag(
         rec = RunRecorder(
             writer,
             ts=sc.ts,
+            steps=sc.run.steps,
             torque_limit=sc.speed_pi.torque_limit,
             strategy_names=strategy_names(sc.family),
             record_tools=True,
         )
-        trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
+        try:
+            trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
+        except KeyboardInterrupt:
+            rec.finish("interrupted")
+            raise
+        except Exception as e:
+            rec.finish(f"failed: {e}")
+            raise
         rec.finish()
     return trace.steps
 
@@ -142,4 +149,4 @@ def run(
         raise Interrupted(f"interrupted: {bag_status(bag).describe()} (of {n} planned)") from None
     wall = time.perf_counter() - t0
     ev = evaluate(bag)
-    return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics, steps_of(ev))
+    return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics, details_of(ev))

@@ -175,32 +175,59 @@ def compute_metrics(
     )
 
 
+class _Sums:
+    """Sums of squared errors and transitions over a run of steps."""
+
+    __slots__ = ("n", "t_err2", "psi_err2", "est_err2", "speed_err2", "transitions")
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.t_err2 = self.psi_err2 = self.est_err2 = self.speed_err2 = self.transitions = 0.0
+
+    def add(
+        self, t_err: float, psi_err: float, est_err: float, speed_err: float, tr: float
+    ) -> None:
+        self.n += 1
+        self.t_err2 += t_err * t_err
+        self.psi_err2 += psi_err * psi_err
+        self.est_err2 += est_err * est_err
+        self.speed_err2 += speed_err * speed_err
+        self.transitions += tr
+
+    def figures(self, ts: float) -> dict[str, float]:
+        n = self.n
+        return {
+            "t_rmse": math.sqrt(self.t_err2 / n),
+            "psi_rmse": math.sqrt(self.psi_err2 / n),
+            "torque_estimate_rmse": math.sqrt(self.est_err2 / n),
+            "speed_rmse": math.sqrt(self.speed_err2 / n),
+            "f_ave_hz": self.transitions / (6.0 * n * ts),
+        }
+
+
 class LiveMetrics:
     """Running figures while a run is in progress (for /diagnostics), fed record by record.
 
     Records may arrive interleaved across topics (the graph gives no cross-topic order); state k,
-    reference k and command k are paired by k. Figures cover the steps since the last snapshot.
+    reference k and command k are paired by k. A snapshot covers the steps since the last one
+    (one every ``period`` s of simulated time); :meth:`total` covers the whole run so far.
     """
 
     #: WARN when the controller's torque estimate is off the true torque by more than this share of
     #: the torque limit, RMS over the period (a parameter-mismatch symptom)
     ESTIMATE_WARN_SHARE = 0.05
 
-    def __init__(self, *, ts: float, torque_limit: float, period: float = 1.0) -> None:
+    def __init__(self, *, ts: float, torque_limit: float, period: float = 0.1) -> None:
         self.ts = ts
         self.torque_limit = torque_limit
         self.every = every_steps(period, ts)
         self._pending: dict[int, dict[str, tuple[float, ...]]] = {}
-        self._reset()
+        self._period = _Sums()
+        self._run = _Sums()
         self.steps = 0
-
-    def _reset(self) -> None:
-        self._n = 0
-        self._t_err2 = 0.0
-        self._psi_err2 = 0.0
-        self._est_err2 = 0.0
-        self._speed_err2 = 0.0
-        self._transitions = 0.0
+        self._last_k = -1
+        self._last_t = 0.0
+        self._last_strategy = math.nan
 
     def add(self, record: str, row: tuple[float, ...]) -> dict[str, float] | None:
         """Feed one record; returns a snapshot when a diagnostics period completes, else None."""
@@ -213,43 +240,50 @@ class LiveMetrics:
         s, r, c = slot["state"], slot["reference"], slot["command"]
         S, R, C = STATE_INDEX, REFERENCE_INDEX, COMMAND_INDEX
         te = s[S.torque]
-        self._t_err2 += (te - r[R.torque_ref]) ** 2
-        self._psi_err2 += (math.hypot(s[S.psi_alpha], s[S.psi_beta]) - r[R.flux_ref]) ** 2
-        self._est_err2 += (c[C.torque_est] - te) ** 2
-        self._speed_err2 += (s[S.omega_m] - r[R.speed_ref]) ** 2
-        self._transitions += s[S.transitions]
-        self._n += 1
+        errors = (
+            te - r[R.torque_ref],
+            math.hypot(s[S.psi_alpha], s[S.psi_beta]) - r[R.flux_ref],
+            c[C.torque_est] - te,
+            s[S.omega_m] - r[R.speed_ref],
+            s[S.transitions],
+        )
+        self._period.add(*errors)
+        self._run.add(*errors)
         self.steps += 1
+        self._last_k = k
         self._last_t = s[S.t]
         self._last_strategy = c[C.strategy]
         if self.steps % self.every:
             return None
         return self.flush()
 
-    def flush(self) -> dict[str, float] | None:
-        """Snapshot of the steps since the last one (None if there are none)."""
-        n = self._n
-        if n == 0:
-            return None
-        snap = {
+    def _snapshot(self, sums: _Sums) -> dict[str, float]:
+        return {
+            "k": float(self._last_k),
             "t": self._last_t,
             "steps": float(self.steps),
-            "t_rmse": math.sqrt(self._t_err2 / n),
-            "psi_rmse": math.sqrt(self._psi_err2 / n),
-            "torque_estimate_rmse": math.sqrt(self._est_err2 / n),
-            "speed_rmse": math.sqrt(self._speed_err2 / n),
-            "f_ave_hz": self._transitions / (6.0 * n * self.ts),
+            **sums.figures(self.ts),
             "strategy": self._last_strategy,
         }
-        self._reset()
+
+    def flush(self) -> dict[str, float] | None:
+        """Snapshot of the steps since the last one (None if there are none)."""
+        if self._period.n == 0:
+            return None
+        snap = self._snapshot(self._period)
+        self._period = _Sums()
         return snap
 
+    def total(self) -> dict[str, float] | None:
+        """Snapshot of every step so far (None before the first)."""
+        return self._snapshot(self._run) if self._run.n else None
+
     def level(self, snap: dict[str, float]) -> tuple[int, str]:
-        """(diagnostic level, message) for a snapshot: 0 OK or 1 WARN."""
+        """(diagnostic level, what is wrong or "") for a snapshot: 0 OK or 1 WARN."""
         limit = self.ESTIMATE_WARN_SHARE * self.torque_limit
         if snap["torque_estimate_rmse"] > limit:
             return 1, (
                 f"controller torque estimate off by {snap['torque_estimate_rmse']:.3g} N·m RMS "
                 f"(> {limit:.3g}): model mismatch?"
             )
-        return 0, "running"
+        return 0, ""

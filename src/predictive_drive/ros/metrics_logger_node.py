@@ -4,7 +4,6 @@ running metrics on /diagnostics, closes the bag cleanly however the run ends."""
 
 from __future__ import annotations
 
-import struct
 import sys
 import time
 from collections.abc import Callable
@@ -17,7 +16,14 @@ from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice
 from ..errors import BagError
-from ..interface import CODECS, RECORDED_EVERY, TOPICS
+from ..interface import (
+    CODECS,
+    NODES,
+    RECORDED_EVERY,
+    TOPICS,
+    decode_parameter_event,
+    node_name,
+)
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import WatchedNode, run_main
 
@@ -60,7 +66,7 @@ class MetricsLoggerNode(WatchedNode):
         self.n = run.steps
         out = Path(extra.bag) if extra.bag else default_bag_dir(sc)
         self.writer = BagWriter(out, info=bag_info(sc, extra.engine))
-        self.pub_diag = self.publisher("diagnostics")
+        self.pubs = {key: self.publisher(key) for key in ("diagnostics", "metrics")}
         self.pub_recorded = self.publisher("recorded")
         self._last = {"state": -1, "reference": -1, "command": -1}  #: last k written, by record
         self._said = -1  #: the last step /drive/recorded announced
@@ -69,10 +75,11 @@ class MetricsLoggerNode(WatchedNode):
         self.rec = RunRecorder(
             self.writer,
             ts=run.ts,
+            steps=run.steps,
             torque_limit=sc.speed_pi.torque_limit,
             strategy_names=strategy_names(sc.family),
             record_tools=False,
-            publish=self._publish_diagnostics,
+            publish=self._publish_tool,
         )
         ticks = self.n // tool_every(run.ts) + 1
         self._counts = {"state": 0, "reference": 0, "command": 0, "clock": 0, "joint_states": 0}
@@ -91,12 +98,15 @@ class MetricsLoggerNode(WatchedNode):
             self.subscription(rec, lambda d, rec=rec: self.on_record(rec, d))
             for rec in ("state", "reference", "command")
         ]
+        # rclpy publishes parameter events over DDS, never through a LocalBus
+        self._drive_nodes = {node_name(n) for n in NODES}
+        self.events = self.subscription("parameter_events", self.on_parameter_event, dds=True)
         self.get_logger().info(f"recording to {out}")
         self._closed = False
 
-    def _publish_diagnostics(self, _key: str, data: bytes) -> None:
+    def _publish_tool(self, key: str, data: bytes) -> None:
         if self.context.ok():  # not while shutting down: the recording matters more
-            self.pub_diag.publish(data)
+            self.pubs[key].publish(data)
 
     def stalled_message(self) -> str:
         missing = [r for r, c in self._counts.items() if c < self._need[r]]
@@ -141,14 +151,26 @@ class MetricsLoggerNode(WatchedNode):
 
     def on_tool(self, key: str, data: bytes) -> None:
         self._last_message = time.monotonic()
-        sec, nsec = struct.unpack_from("<iI", data, 4)  # header.stamp / clock, after the CDR header
         try:
-            self.writer.write(key, sec * 1_000_000_000 + nsec, data)
+            self.rec.record_tool(key, data)
         except BagError as e:
             self._cannot_write(e)
             return
         self._counts[key] += 1
         self._maybe_done()
+
+    def on_parameter_event(self, data: bytes) -> None:
+        """Parameter changes the drive's nodes accept while the drive runs (from its first state
+        on: not the declarations and overrides of start-up, which this node may or may not see
+        depending on who starts first)."""
+        if self._counts["state"] == 0 or self._closed:
+            return
+        event = decode_parameter_event(data)
+        if event.node in self._drive_nodes and event.changed:
+            try:
+                self.rec.record_event(data)
+            except BagError as e:
+                self._cannot_write(e)
 
     def _cannot_write(self, e: BagError) -> None:
         if not self.failure:
@@ -157,7 +179,7 @@ class MetricsLoggerNode(WatchedNode):
     def fail(self, message: str) -> None:
         super().fail(message)
         try:
-            self._publish_diagnostics("diagnostics", self.rec.error(message))
+            self._publish_tool("diagnostics", self.rec.error(message))
         except BagError:
             pass  # the bag is what failed: the message goes to the log only
 

@@ -203,10 +203,13 @@ class DriveNode(Node):
         pub = self.create_publisher(msg_class(t.type), t.name, qos(t.qos))
         return pub if self.bus is None else Outlet(pub, self.bus)
 
-    def subscription(self, key: str, callback: Callable[[bytes], None]) -> Any:
-        """Raw (serialized) subscription; through the process's :class:`LocalBus` if it has one."""
+    def subscription(
+        self, key: str, callback: Callable[[bytes], None], *, dds: bool = False
+    ) -> Any:
+        """Raw (serialized) subscription; through the process's :class:`LocalBus` if it has one,
+        unless ``dds`` (a topic rclpy itself publishes, such as /parameter_events)."""
         t = TOPICS[key]
-        if self.bus is not None:
+        if self.bus is not None and not dds:
             self.bus.subscribe(t.name, callback)
             return None
         return self.create_subscription(msg_class(t.type), t.name, callback, qos(t.qos), raw=True)
@@ -290,7 +293,7 @@ def spin_main(
         nodes = make(bus)
         code = spin_nodes(nodes, ex, bus)
     except (KeyboardInterrupt, ExternalShutdownException):
-        code = 130
+        code = 0
     except (ConfigError, GraphError) as e:
         print(f"{e}", file=sys.stderr)
         code = 2
@@ -341,8 +344,9 @@ def _spin(ex: Any, bus: LocalBus | None, timeout: float) -> None:
 
 
 def spin_nodes(nodes: list[DriveNode], ex: Any, bus: LocalBus | None = None) -> int:
-    """Spin until every node has finished or one fails; 0 on success, 1 on a node failure, 130
-    when stopped (:data:`STOP`).
+    """Spin until every node has finished or one fails, or :data:`STOP` is set; 1 on a node
+    failure, else 0 (a stop by SIGINT or SIGTERM ends a node cleanly, as ``ros2 launch`` expects
+    of its nodes).
 
     The executor runs in C++ until a node signals (finished / failed) or 0.1 s pass; then the
     watchdogs run. Every spin has a finite timeout (see :func:`executor`). With a ``bus``, its
@@ -381,7 +385,7 @@ def spin_nodes(nodes: list[DriveNode], ex: Any, bus: LocalBus | None = None) -> 
             return 1
         if all(n.finished for n in nodes):
             return 0
-    return 130
+    return 0  # stopped (SIGINT / SIGTERM): a clean end, as a ROS node's
 
 
 def run_main(node_cls: Callable[[], DriveNode], args: list[str] | None = None) -> int:
