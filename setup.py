@@ -36,9 +36,12 @@ setup(
         # what a ROS 2 Jazzy install already provides; the Makefile installs it from wheels
         "ros": ["ros-jazzy-rclpy[fastrtps]>=7.1,<8", "ros-jazzy-common-interfaces>=5.3,<6"],
         "figures": ["matplotlib>=3.8,<4"],
+        # the live view (run --live): no rosdep key exists for it
+        "live": ["foxglove-sdk>=0.30.3,<0.31"],
         "test": ["pytest>=8,<10", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
-                 "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1", "mypy>=1.10,<3"],
+                 "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1", "mypy>=1.10,<3",
+                 "websocket-client>=1.7,<2"],
     },
     zip_safe=False,  # the nodes hand Fast DDS the path of ros/fastdds_profiles.xml
     entry_points={

@@ -130,12 +130,15 @@ def test_the_installed_nodes_run_as_ros2_run_starts_them(install, tmp_path):
 def test_the_launch_file_starts_the_graph_the_launcher_starts():
     """The launch package is not installable here (no `ros2 launch`), so the file is held to the
     launcher's graph: the same nodes, executables, namespace, scenario file and strategy."""
+    from dataclasses import fields
+
     from predictive_drive.interface import NAMESPACE
     from predictive_drive.ros.launcher import START_ORDER
+    from predictive_drive.ros.metrics_logger_node import RecordingParams
 
     root = ET.parse(ROOT / "launch" / "drive.launch.xml").getroot()
     args = {a.get("name"): a.get("default") for a in root.iter("arg")}
-    assert args == {"scenario": "im_paper", "strategy": ""}
+    assert args == {"scenario": "im_paper", "strategy": "", "live_port": "0"}
     nodes = root.findall("node")
     assert {n.get("name") for n in nodes} == set(START_ORDER)
     for n in nodes:
@@ -145,11 +148,16 @@ def test_the_launch_file_starts_the_graph_the_launcher_starts():
         params = n.findall("param")
         assert params[0].get("from") == "$(var params)"
         overrides = {p.get("name"): p.get("value") for p in params[1:]}
+        if n.get("name") == "metrics_logger":
+            assert overrides.pop("live_port") == "$(var live_port)"
         if n.get("unless"):  # the variant used when a strategy is given
             assert overrides == {"strategy": "$(var strategy)"}
             assert n.get("name") in ("torque_controller", "metrics_logger")
         else:
             assert overrides == {}
+        # the logger declares what the file sets
+        if n.get("name") == "metrics_logger":
+            assert {"strategy", "live_port"} <= {f.name for f in fields(RecordingParams)}
     (let,) = root.findall("let")
     assert let.get("value") == "$(find-pkg-share predictive_drive)/config/$(var scenario).yaml"
     # each conditional node comes as a pair that covers both cases exactly once

@@ -25,29 +25,11 @@ from predictive_drive.ros.placement import (
     FASTDDS_PROFILES_ENV,
     cpu_plan,
 )
+from procs import descendants
 
 pytestmark = pytest.mark.process
 
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
-
-
-def descendants(pid: int) -> list[int]:
-    """PIDs whose parent chain leads to ``pid`` (from /proc)."""
-    parents = {}
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                stat = (d / "stat").read_text()
-            except OSError:
-                continue
-            parents[int(d.name)] = int(stat.rsplit(")", 1)[1].split()[1])
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        kids = [c for c, pp in parents.items() if pp == p]
-        out += kids
-        todo += kids
-    return out
 
 
 def ended(pid: int) -> bool:

@@ -16,6 +16,7 @@ import numpy as np
 from . import __version__
 from .api import analyze, bench, compare, repair, replay, report, reproduce, run
 from .errors import Interrupted, PredictiveDriveError
+from .live import DEFAULT_PORT
 from .reports.papers import MTPA_STUDIES, PAPER_TABLES
 from .ros.placement import AFFINITIES, SCHED_POLICIES
 
@@ -130,6 +131,12 @@ def _print_metrics(d: dict[str, Any]) -> None:
 
 
 def cmd_run(a: argparse.Namespace) -> int:
+    if a.live:
+        print(
+            f"predictive-drive: live view on ws://127.0.0.1:{a.live} (Foxglove / Lichtblick: "
+            "open connection, Foxglove WebSocket)",
+            file=sys.stderr,
+        )
     update, close = _progress(sys.stderr.isatty() and not a.json)
     try:
         r = run.run(
@@ -143,6 +150,7 @@ def cmd_run(a: argparse.Namespace) -> int:
             affinity=a.affinity,
             sched=a.sched,
             peer_timeout=a.peer_timeout,
+            live=a.live or 0,
         )
     finally:
         close()
@@ -480,6 +488,16 @@ def build_parser() -> argparse.ArgumentParser:
         "woken node does not preempt the one publishing to it) or other (the kernel's default)",
     )
     r.add_argument("--out", help="bag directory to write (must not exist)")
+    r.add_argument(
+        "--live",
+        type=int,
+        nargs="?",
+        const=DEFAULT_PORT,
+        metavar="PORT",
+        help="serve the running drive to Foxglove / Lichtblick on ws://127.0.0.1:PORT (default "
+        f"{DEFAULT_PORT}): the topics decimated to 1 kHz of simulated time, /clock as the "
+        "app's time, the strategy as a parameter the app can set",
+    )
     r.add_argument(
         "--peer-timeout",
         type=float,

@@ -200,10 +200,12 @@ class RunRecorder:
         strategy_names: tuple[str, ...],
         record_tools: bool,
         publish: Callable[[str, bytes], None] | None = None,
+        live: Callable[[str, int, bytes], None] | None = None,
     ) -> None:
         """``record_tools``: the in-process engine, where the recorder also writes what the
         plant and the controller node would publish: /clock, /drive/joint_states, and a
-        parameter event when the strategy changes."""
+        parameter event when the strategy changes. ``live(topic_key, t_ns, data)``: a second
+        sink that sees every message as it comes (the live view)."""
         self.writer = writer
         self.live = LiveMetrics(ts=ts, torque_limit=torque_limit)
         self.strategy_names = strategy_names
@@ -212,6 +214,7 @@ class RunRecorder:
         self._every = tool_every(ts)
         self._tools = self._events = record_tools
         self._publish = publish
+        self._live = live
         self.last_t = 0.0
         #: the last log time seen on each topic the recorder waits on (each comes in order)
         self._seen = dict.fromkeys(_STREAMS if record_tools else (*_STREAMS, *TOOL_TOPICS), -1)
@@ -224,10 +227,10 @@ class RunRecorder:
         """In-process path: encode, write, and the plant's tool messages with each state."""
         key = RECORD_TOPICS[record]
         ns = stamp_ns(row[T])
-        self.writer.hold(key, ns, CODECS[key].encode(row))
+        self._hold(key, ns, CODECS[key].encode(row))
         if self._tools and record == "state":
             for tkey, tns, data in tool_messages(row, self._every):
-                self.writer.hold(tkey, tns, data)
+                self._hold(tkey, tns, data)
         self._feed(record, row, ns)
 
     def record_raw(self, record: str, data: bytes) -> tuple[float, ...]:
@@ -235,20 +238,25 @@ class RunRecorder:
         key = RECORD_TOPICS[record]
         row = CODECS[key].decode(data)
         ns = stamp_ns(row[T])
-        self.writer.hold(key, ns, data)
+        self._hold(key, ns, data)
         self._feed(record, row, ns)
         return row
 
     def record_tool(self, key: str, data: bytes) -> None:
         """Node path: /clock or /drive/joint_states as the plant published it."""
         ns = tool_stamp_ns(data)
-        self.writer.hold(key, ns, data)
+        self._hold(key, ns, data)
         self._advance(key, ns)
 
     def record_event(self, data: bytes) -> None:
         """An accepted parameter change (rcl_interfaces/ParameterEvent), logged at the time it
         arrives on the simulated clock (the last step seen), as rosbag2 logs receive time."""
-        self.writer.hold("parameter_events", max(stamp_ns(self.last_t), self._released), data)
+        self._hold("parameter_events", max(stamp_ns(self.last_t), self._released), data)
+
+    def _hold(self, key: str, ns: int, data: bytes) -> None:
+        self.writer.hold(key, ns, data)
+        if self._live is not None:
+            self._live(key, ns, data)
 
     def _feed(self, record: str, row: tuple[float, ...], ns: int) -> None:
         if row[T] > self.last_t:
@@ -271,7 +279,7 @@ class RunRecorder:
             # what the controller node publishes when its strategy parameter is set
             t = k * self.ts
             data = encode_parameter_event(t, node_name("torque_controller"), [("strategy", name)])
-            self.writer.hold("parameter_events", stamp_ns(t), data)
+            self._hold("parameter_events", stamp_ns(t), data)
 
     def finish(self, error: str = "") -> None:
         """The last, partial diagnostics period, then the run's outcome: OK (or WARN, naming
@@ -296,7 +304,7 @@ class RunRecorder:
         else:
             level, message = OK, f"complete: {done} steps{figures}"
         ns, data = diagnostics_message(total, level, message, self.strategy_names)
-        self.writer.hold("diagnostics", max(ns, self._released), data)
+        self._hold("diagnostics", max(ns, self._released), data)
         if self._publish is not None:
             self._publish("diagnostics", data)
         self.writer.custom_data["strategies"] = spans_to_json(self.spans)
@@ -313,8 +321,8 @@ class RunRecorder:
         metrics = CODECS["metrics"].encode(
             tuple(float(level) if f == "level" else snap[f] for f in TOPICS["metrics"].fields)
         )
-        self.writer.hold("diagnostics", ns, data)
-        self.writer.hold("metrics", ns, metrics)
+        self._hold("diagnostics", ns, data)
+        self._hold("metrics", ns, metrics)
         if self._publish is not None:
             self._publish("diagnostics", data)
             self._publish("metrics", metrics)
@@ -323,5 +331,5 @@ class RunRecorder:
         """Record (and return) an ERROR diagnostics status, e.g. when a peer went silent."""
         t = self.last_t
         data = encode_diagnostics(t, [(ERROR, DIAGNOSTICS_NAME, message, [])])
-        self.writer.hold("diagnostics", max(stamp_ns(t), self._released), data)
+        self._hold("diagnostics", max(stamp_ns(t), self._released), data)
         return data

@@ -17,6 +17,7 @@ from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import ConfigError, Interrupted
+from ..live import LiveView, check_port
 from ..recording import RunRecorder, bag_info, default_bag_dir
 from .report import details_of, evaluate
 
@@ -73,27 +74,40 @@ def run_inprocess_to_bag(
     out: Path,
     switches: Sequence[tuple[int, str]] = (),
     progress: Callable[[int], None] | None = None,
+    live_port: int = 0,
 ) -> int:
     """The in-process engine with recording; returns the number of steps recorded. ``switches``:
-    (step, strategy) pairs, as :func:`switch_steps` makes them."""
-    with BagWriter(out, info=bag_info(sc, "inprocess")) as writer:
-        rec = RunRecorder(
-            writer,
-            ts=sc.ts,
-            steps=sc.run.steps,
-            torque_limit=sc.speed_pi.torque_limit,
-            strategy_names=strategy_names(sc.family),
-            record_tools=True,
-        )
-        try:
-            trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
-        except KeyboardInterrupt:
-            rec.finish("interrupted")
-            raise
-        except Exception as e:
-            rec.finish(f"failed: {e}")
-            raise
-        rec.finish()
+    (step, strategy) pairs, as :func:`switch_steps` makes them; ``live_port``: serve the live
+    view there too (the strategy read-only: this engine has no parameter service)."""
+    names = strategy_names(sc.family)
+    live = (
+        LiveView(port=live_port, ts=sc.ts, strategy=sc.strategy, strategy_names=names)
+        if live_port
+        else None
+    )
+    try:
+        with BagWriter(out, info=bag_info(sc, "inprocess")) as writer:
+            rec = RunRecorder(
+                writer,
+                ts=sc.ts,
+                steps=sc.run.steps,
+                torque_limit=sc.speed_pi.torque_limit,
+                strategy_names=names,
+                record_tools=True,
+                live=None if live is None else live.offer,
+            )
+            try:
+                trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
+            except KeyboardInterrupt:
+                rec.finish("interrupted")
+                raise
+            except Exception as e:
+                rec.finish(f"failed: {e}")
+                raise
+            rec.finish()
+    finally:
+        if live is not None:
+            live.close()
     return trace.steps
 
 
@@ -109,12 +123,14 @@ def run(
     affinity: str = "paired",
     sched: str = "batch",
     peer_timeout: float = 10.0,
+    live: int = 0,
 ) -> RunResult:
     """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
     ``sched``: CPU placement (``paired`` | ``none``, see
     :func:`predictive_drive.ros.placement.cpu_plan`) and scheduling policy (``batch`` |
     ``other``) of the ``ros`` engine's node processes; ``peer_timeout``: s of wall time a node
-    of a ROS engine waits for a silent peer before the run fails."""
+    of a ROS engine waits for a silent peer before the run fails; ``live``: a port to serve the
+    running drive on to Foxglove / Lichtblick (0: none; see :mod:`predictive_drive.live`)."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     if not (math.isfinite(peer_timeout) and peer_timeout > 0):
@@ -128,10 +144,12 @@ def run(
     # checked for every engine, so a bad --switch or --out fails before anything starts
     at_steps = switch_steps(sc, switches)
     check_new_bag(bag)
+    if live:
+        check_port(live)
     t0 = time.perf_counter()
     try:
         if engine == "inprocess":
-            run_inprocess_to_bag(sc, bag, at_steps, cb)
+            run_inprocess_to_bag(sc, bag, at_steps, cb, live_port=live)
         else:
             from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
 
@@ -144,6 +162,7 @@ def run(
                 affinity=affinity,
                 sched=sched,
                 peer_timeout=peer_timeout,
+                live_port=live,
             )
     except KeyboardInterrupt:
         raise Interrupted(f"interrupted: {bag_status(bag).describe()} (of {n} planned)") from None

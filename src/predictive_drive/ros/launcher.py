@@ -135,8 +135,10 @@ def run_graph(
     peer_timeout: float = 10.0,
     affinity: str = "paired",
     sched: str = "batch",
+    live_port: int = 0,
 ) -> None:
-    """Run ``sc`` through the graph and record it to ``bag``; GraphError names the node that
+    """Run ``sc`` through the graph and record it to ``bag``; with ``live_port``, the logger
+    also serves the live view there (:class:`~predictive_drive.live.LiveView`); GraphError names the node that
     failed first and says what state the bag is in. The node logs stay with the bag
     (``<bag>/logs/``). ``affinity`` places the separate node processes on CPUs (see
     :func:`cpu_plan`) and ``sched`` is their threads' scheduling policy
@@ -155,6 +157,7 @@ def run_graph(
         bag=str(bag),
         scenario_file=source,
         engine="composed" if composed else "ros",
+        live_port=live_port,
     )
     # the launcher follows /clock for progress and switches: step 0 waits for it too
     watching = bool(switches) or progress is not None

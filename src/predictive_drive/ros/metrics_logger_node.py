@@ -14,7 +14,7 @@ from typing import Any
 from ..bag import BagWriter
 from ..config import load_scenario
 from ..core.control import strategy_names
-from ..core.fields import choice
+from ..core.fields import choice, quantity
 from ..errors import BagError
 from ..interface import (
     CODECS,
@@ -24,6 +24,7 @@ from ..interface import (
     decode_parameter_event,
     node_name,
 )
+from ..live import LiveView
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import WatchedNode, run_main
 
@@ -47,6 +48,13 @@ class RecordingParams:
     engine: str = choice(
         "what runs the graph, for the bag's metadata", ("ros", "composed"), default="ros"
     )
+    live_port: int = quantity(
+        "port of the live view (Foxglove WebSocket, on 127.0.0.1; 0: none)",
+        ge=0,
+        le=65535,
+        integer=True,
+        default=0,
+    )
 
 
 class MetricsLoggerNode(WatchedNode):
@@ -65,7 +73,13 @@ class MetricsLoggerNode(WatchedNode):
         )
         self.n = run.steps
         out = Path(extra.bag) if extra.bag else default_bag_dir(sc)
-        self.writer = BagWriter(out, info=bag_info(sc, extra.engine))
+        self.live = self._live_view(extra.live_port, run.ts, sc) if extra.live_port else None
+        try:
+            self.writer = BagWriter(out, info=bag_info(sc, extra.engine))
+        except BaseException:
+            if self.live is not None:
+                self.live.close()
+            raise
         self.pubs = {key: self.publisher(key) for key in ("diagnostics", "metrics")}
         self.pub_recorded = self.publisher("recorded")
         self._last = {"state": -1, "reference": -1, "command": -1}  #: last k written, by record
@@ -80,6 +94,7 @@ class MetricsLoggerNode(WatchedNode):
             strategy_names=strategy_names(sc.family),
             record_tools=False,
             publish=self._publish_tool,
+            live=None if self.live is None else self.live.offer,
         )
         ticks = self.n // tool_every(run.ts) + 1
         self._counts = {"state": 0, "reference": 0, "command": 0, "clock": 0, "joint_states": 0}
@@ -100,9 +115,39 @@ class MetricsLoggerNode(WatchedNode):
         ]
         # rclpy publishes parameter events over DDS, never through a LocalBus
         self._drive_nodes = {node_name(n) for n in NODES}
+        self._controller = node_name("torque_controller")
         self.events = self.subscription("parameter_events", self.on_parameter_event, dds=True)
         self.get_logger().info(f"recording to {out}")
         self._closed = False
+
+    def _live_view(self, port: int, ts: float, sc: Any) -> LiveView:
+        """The live view, its strategy set through the controller's parameter service."""
+        from rclpy.parameter import Parameter
+        from rclpy.parameter_client import AsyncParameterClient
+
+        controller = AsyncParameterClient(self, node_name("torque_controller"))
+
+        def set_strategy(name: str) -> None:
+            fut = controller.set_parameters([Parameter("strategy", value=name)])
+            fut.add_done_callback(lambda f: self._strategy_answer(name, f))
+
+        view = LiveView(
+            port=port,
+            ts=ts,
+            strategy=sc.strategy,
+            strategy_names=strategy_names(sc.family),
+            set_strategy=set_strategy,
+        )
+        self.get_logger().info(
+            f"live view on {view.url} (Foxglove / Lichtblick: open a Foxglove WebSocket "
+            f"connection to it)"
+        )
+        return view
+
+    def _strategy_answer(self, name: str, fut: Any) -> None:
+        result = fut.result().results[0] if fut.result() else None
+        if self.live is not None and result is not None and not result.successful:
+            self.live.rejected(f"strategy {name}: {result.reason}")
 
     def _publish_tool(self, key: str, data: bytes) -> None:
         if self.context.ok():  # not while shutting down: the recording matters more
@@ -163,9 +208,13 @@ class MetricsLoggerNode(WatchedNode):
         """Parameter changes the drive's nodes accept while the drive runs (from its first state
         on: not the declarations and overrides of start-up, which this node may or may not see
         depending on who starts first)."""
+        event = decode_parameter_event(data)
+        if self.live is not None and event.node == self._controller:
+            for name, value in event.changed:
+                if name == "strategy":
+                    self.live.strategy_changed(str(value))
         if self._counts["state"] == 0 or self._closed:
             return
-        event = decode_parameter_event(data)
         if event.node in self._drive_nodes and event.changed:
             try:
                 self.rec.record_event(data)
@@ -187,6 +236,8 @@ class MetricsLoggerNode(WatchedNode):
         if self._closed:
             return
         self._closed = True
+        if self.live is not None:
+            self.live.close()
         try:
             try:
                 self.rec.finish()

@@ -1,0 +1,163 @@
+"""The live view (`run --live`): a Foxglove WebSocket client connects, subscribes and decodes what
+the drive serves; the strategy is a parameter it can read and set."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from predictive_drive.bag import read_bag
+from predictive_drive.errors import ConfigError
+from predictive_drive.interface import CODECS, TOPICS, encode_clock, stamp_ns
+
+pytest.importorskip("foxglove")
+from foxglove_client import FoxgloveClient  # noqa: E402
+from procs import descendants  # noqa: E402
+
+STRATEGY = "/drive/torque_controller.strategy"
+CLI = [sys.executable, "-m", "predictive_drive.cli"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.core
+def test_the_view_serves_decimated_topics_time_and_the_strategy():
+    from predictive_drive.live import LiveView
+
+    asked = []
+    view = LiveView(
+        port=free_port(),
+        ts=50e-6,
+        strategy="mptc",
+        strategy_names=("mptc", "mptc_db", "db_mptc"),
+        set_strategy=asked.append,
+    )
+    client = FoxgloveClient(view.url)
+    try:
+        got = client.pump(5, until=lambda g: len(g.channels) >= 8)
+        by_topic = {ch["topic"]: ch for ch in got.channels.values()}
+        state = by_topic["/drive/state"]
+        assert (state["encoding"], state["schemaEncoding"]) == ("cdr", "ros2msg")
+        assert state["schemaName"] == "std_msgs/msg/Float64MultiArray"
+        assert (
+            "Capability" not in str(got.server_info) and "time" in got.server_info["capabilities"]
+        )
+        client.subscribe(["/drive/state", "/clock"])
+        time.sleep(0.3)  # the subscription reaches the server
+        fields = TOPICS["state"].fields
+        for k in range(100):
+            t = k * 50e-6
+            row = tuple(float(k) if f == "k" else t if f == "t" else 0.5 for f in fields)
+            view.offer("state", stamp_ns(t), CODECS["state"].encode(row))
+            if k % 20 == 0:
+                view.offer("clock", stamp_ns(t), encode_clock(t))
+        got = client.pump(5, until=lambda g: len(g.messages.get("/drive/state", [])) >= 5)
+        ks = [CODECS["state"].decode(d)[0] for _, d in got.messages["/drive/state"]]
+        assert ks == [0.0, 20.0, 40.0, 60.0, 80.0]  # one message per ms of simulated time
+        assert [ns for ns, _ in got.messages["/drive/state"]] == [
+            k * 50_000 for k in range(0, 100, 20)
+        ]
+        client.pump(1, until=lambda g: len(g.times) >= 5)
+        assert got.times == [k * 50_000 for k in range(0, 100, 20)]  # /clock is the app's time
+
+        client.get_parameters([STRATEGY], "g1")
+        got = client.pump(5, until=lambda g: g.parameters)
+        assert got.parameters[0]["parameters"] == [{"name": STRATEGY, "value": "mptc"}]
+        client.subscribe_parameters([STRATEGY])
+        client.set_parameters({STRATEGY: "dtc"}, "s1")
+        client.pump(5, until=lambda g: g.statuses)
+        assert "valid: mptc, mptc_db, db_mptc" in got.statuses[0]["message"]
+        client.set_parameters({STRATEGY: "db_mptc"}, "s2")
+        client.pump(5, until=lambda g: asked)
+        assert asked == ["db_mptc"]
+        view.strategy_changed("db_mptc")  # what the controller's parameter event brings
+        client.pump(5, until=lambda g: g.parameters[-1]["parameters"][0]["value"] == "db_mptc")
+        assert got.parameters[-1]["parameters"] == [{"name": STRATEGY, "value": "db_mptc"}]
+    finally:
+        client.close()
+        view.close()
+
+
+@pytest.mark.core
+def test_a_port_in_use_is_refused_before_the_run(tmp_path):
+    from predictive_drive.api.run import run
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        with pytest.raises(ConfigError, match=rf"--live {port}: cannot serve on 127.0.0.1:{port}"):
+            run("im_short", engine="inprocess", live=port, out=tmp_path / "b")
+    assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.process
+def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
+    """`run --live PORT` on the ROS graph: a client connects, receives the drive's topics and
+    /clock, sets the strategy; the controller takes it (the commands show it, the bag records
+    the parameter event), then Ctrl-C ends the run with a readable bag."""
+    port = free_port()
+    bag = tmp_path / "live"
+    p = subprocess.Popen(
+        [*CLI, "run", "im_short", "--duration", "30", "--strategy", "mptc",
+         "--live", str(port), "--out", str(bag)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    client = None
+    try:
+        client = FoxgloveClient(f"ws://127.0.0.1:{port}", timeout=60)
+        got = client.pump(10, until=lambda g: len(g.channels) >= 8)
+        client.subscribe(["/drive/state", "/drive/command", "/clock", "/diagnostics"])
+        client.pump(20, until=lambda g: len(g.messages.get("/drive/command", [])) > 50)
+        client.subscribe_parameters([STRATEGY])
+        client.set_parameters({STRATEGY: "db_mptc"}, "s1")
+        names = ("mptc", "mptc_db", "db_mptc")
+        strategy = TOPICS["command"].fields.index("strategy")
+
+        def switched(g):
+            return any(
+                CODECS["command"].decode(d)[strategy] == names.index("db_mptc")
+                for _, d in g.messages.get("/drive/command", [])[-20:]
+            )
+
+        t0 = time.monotonic()
+        client.pump(20, until=switched)
+        assert switched(got)
+        print(f"switch seen in the commands {time.monotonic() - t0:.2f} s after the set")
+        updated = [{"name": STRATEGY, "value": "db_mptc"}]
+        client.pump(20, until=lambda g: any(par["parameters"] == updated for par in g.parameters))
+        assert any(par["parameters"] == updated for par in got.parameters)
+        states = [CODECS["state"].decode(d) for _, d in got.messages["/drive/state"]]
+        ks = np.array([s[0] for s in states])
+        assert np.all(ks % 20 == 0) and np.all(np.diff(ks) > 0)
+        assert len(got.times) > 10 and np.all(np.diff(got.times) > 0)
+        client.pump(20, until=lambda g: "/diagnostics" in g.messages)
+        assert got.messages["/diagnostics"]
+    finally:
+        if client is not None:
+            client.close()
+        os.kill(p.pid, signal.SIGINT)
+        try:
+            _, err = p.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            for pid in [*descendants(p.pid), p.pid]:
+                os.kill(pid, signal.SIGKILL)
+            p.communicate(timeout=10)
+            raise
+    assert p.returncode == 130, err
+    assert re.search(rf"live view on ws://127.0.0.1:{port}", err)
+    tr, info = read_bag(bag)
+    assert info.complete
+    assert [e.changed for _, e in info.events] == [(("strategy", "db_mptc"),)]
