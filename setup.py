@@ -38,6 +38,8 @@ setup(
         "figures": ["matplotlib>=3.8,<4"],
         # the live view (run --live): no rosdep key exists for it
         "live": ["foxglove-sdk>=0.30.3,<0.31"],
+        # sweep: the Parquet table and Dask clusters (--scheduler)
+        "sweep": ["pyarrow>=21,<27", "dask[distributed]>=2025.1,<2027"],
         "test": ["pytest>=8,<10", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
                  "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1", "mypy>=1.10,<3",

@@ -1,7 +1,14 @@
-"""The processes a test started, found through /proc."""
+"""The processes a test started: found through /proc, ended with all they started."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -22,3 +29,60 @@ def descendants(pid: int) -> list[int]:
         out += kids
         todo += kids
     return out
+
+
+def signal_tree(pid: int, sig: int) -> None:
+    """``sig`` to ``pid`` and every process below it (those already gone are skipped)."""
+    for p in [*descendants(pid), pid]:
+        try:
+            os.kill(p, sig)
+        except ProcessLookupError:
+            pass
+
+
+def end_all(procs: list[subprocess.Popen], grace: float = 20.0) -> None:
+    """End processes a test started, with everything they started: SIGTERM, then SIGKILL for
+    whatever is still there after ``grace`` s."""
+    for p in procs:
+        signal_tree(p.pid, signal.SIGTERM)
+    for p in procs:
+        try:
+            p.wait(timeout=grace)
+        except subprocess.TimeoutExpired:
+            signal_tree(p.pid, signal.SIGKILL)
+            p.wait(timeout=10)
+
+
+@contextmanager
+def dask_cluster(tmp: Path, workers: int = 2) -> Iterator[str]:
+    """A Dask scheduler and ``workers`` workers (one process, one thread each) on localhost,
+    started with the `dask` command as a user starts them; yields the scheduler's address and
+    ends them all on exit."""
+    import json
+
+    from distributed import Client
+
+    dask = str(Path(sys.executable).with_name("dask"))
+    info = tmp / "scheduler.json"
+    procs: list[subprocess.Popen] = []
+    with open(tmp / "cluster.log", "w") as log:
+        start = {"stdout": log, "stderr": subprocess.STDOUT, "start_new_session": True}
+        try:
+            procs.append(subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port",
+                                           "0", "--dashboard-address", ":0", "--scheduler-file",
+                                           str(info)], **start))  # fmt: skip
+            deadline = time.monotonic() + 60
+            while not info.exists():
+                assert time.monotonic() < deadline, (tmp / "cluster.log").read_text()
+                time.sleep(0.2)
+            for _ in range(workers):
+                procs.append(subprocess.Popen([dask, "worker", "--scheduler-file", str(info),
+                                               "--nworkers", "1", "--nthreads", "1",
+                                               "--no-dashboard", "--host", "127.0.0.1"],
+                                              **start))  # fmt: skip
+            address = json.loads(info.read_text())["address"]
+            with Client(address, timeout=30) as c:
+                c.wait_for_workers(workers, timeout=60)
+            yield address
+        finally:
+            end_all(procs)

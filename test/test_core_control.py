@@ -4,6 +4,7 @@ import cmath
 import math
 import random
 
+import numpy as np
 import pytest
 
 from predictive_drive.core.control import InductionController, make_strategy, strategy_names
@@ -235,3 +236,31 @@ def test_speed_pi_clamping_anti_windup_holds_integrator():
     # error reverses: integrator integrates again at once (no wind-up to unwind)
     r = pi.step(_state(1000, w=10.5))
     assert r.torque_ref == pytest.approx(0.5 * -0.5)
+
+
+@pytest.mark.core
+def test_the_immediate_speed_loop_applies_t_star_at_the_step_of_its_state(tmp_path):
+    """one_step (default): reference k+1 is the PI's answer to state k, reference 0 the initial
+    T* = 0. immediate: reference k is the answer to state k itself: the same PI, one step earlier
+    (its first T* is the proportional kick of the first speed error, not 0)."""
+    from predictive_drive.config import load_scenario, scenario_with
+    from predictive_drive.core.control.speed_pi import SpeedPI
+    from predictive_drive.core.runner import run_inprocess
+    from predictive_drive.core.signals import State
+
+    base = load_scenario("im_short", duration=0.01)
+    fast = load_scenario(
+        scenario_with("im_short", {"speed_pi.speed_loop": "immediate"}, tmp_path), duration=0.01
+    )
+    assert (base.speed_pi.speed_loop, fast.speed_pi.speed_loop) == ("one_step", "immediate")
+    for sc, lag in ((base, 1), (fast, 0)):
+        tr = run_inprocess(sc)
+        pi = SpeedPI(sc.speed_pi, ts=sc.ts)
+        refs = tr.reference
+        if lag:
+            np.testing.assert_array_equal(refs[0], pi.initial())
+        for k in range(tr.steps):  # the PI fed the recorded states gives the recorded references
+            ref = pi.step(State(*tr.state[k]))
+            np.testing.assert_array_equal(ref, refs[k + lag])
+        assert refs[0][2] == (0.0 if lag else pytest.approx(min(
+            sc.speed_pi.torque_limit, sc.speed_pi.kp * 800 * 2 * np.pi / 60)))  # fmt: skip

@@ -25,7 +25,7 @@ from predictive_drive.ros.placement import (
     FASTDDS_PROFILES_ENV,
     cpu_plan,
 )
-from procs import descendants
+from procs import descendants, signal_tree
 
 pytestmark = pytest.mark.process
 
@@ -64,11 +64,7 @@ def cli_run(tmp_path):
 
     yield start
     for p in started:
-        for pid in [*descendants(p.pid), p.pid]:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
+        signal_tree(p.pid, signal.SIGKILL)
         p.wait(timeout=10)
 
 
@@ -524,3 +520,18 @@ def test_nodes_stopped_as_ros2_launch_stops_them_end_cleanly(tmp_path):
     tr, info = read_bag(tmp_path / "b")
     assert info.complete and 0 < tr.steps < 600000
     assert info.custom["outcome"].startswith("ERROR: stopped: ")
+
+
+def test_the_immediate_speed_loop_through_the_graph_equals_inprocess(tmp_path):
+    """speed_loop: immediate on the four processes: the controller waits for the speed PI's
+    answer to state k before deciding step k; the run equals the in-process one bit for bit."""
+    from predictive_drive.config import scenario_with
+    from predictive_drive.core.runner import run_inprocess
+
+    path = scenario_with("im_short", {"speed_pi.speed_loop": "immediate"}, tmp_path)
+    r = run(path, duration=0.05, out=tmp_path / "g")
+    tr, info = read_bag(r.bag)
+    ref = run_inprocess(load_scenario(path, duration=0.05))
+    assert info.complete and tr.steps == ref.steps == 1000
+    assert_same_run(tr, ref)
+    assert tr.reference[0][2] != 0.0  # T* from state 0 applies at step 0

@@ -20,7 +20,7 @@ from predictive_drive.interface import CODECS, TOPICS, encode_clock, stamp_ns
 
 pytest.importorskip("foxglove")
 from foxglove_client import FoxgloveClient  # noqa: E402
-from procs import descendants  # noqa: E402
+from procs import signal_tree  # noqa: E402
 
 STRATEGY = "/drive/torque_controller.strategy"
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
@@ -152,8 +152,7 @@ def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
         try:
             _, err = p.communicate(timeout=60)
         except subprocess.TimeoutExpired:
-            for pid in [*descendants(p.pid), p.pid]:
-                os.kill(pid, signal.SIGKILL)
+            signal_tree(p.pid, signal.SIGKILL)
             p.communicate(timeout=10)
             raise
     assert p.returncode == 130, err

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .api import analyze, bench, compare, repair, replay, report, reproduce, run
-from .errors import Interrupted, PredictiveDriveError
+from .api import analyze, bench, compare, repair, replay, report, reproduce, run, sweep
+from .errors import ConfigError, Interrupted, PredictiveDriveError
 from .live import DEFAULT_PORT
 from .reports.papers import MTPA_STUDIES, PAPER_TABLES
 from .ros.placement import AFFINITIES, SCHED_POLICIES
@@ -43,7 +43,9 @@ def dumps(obj: Any) -> str:
     return json.dumps(_finite(obj), indent=None, allow_nan=False)
 
 
-def _progress(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
+def _progress(
+    enabled: bool, unit: str = "step"
+) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
     if not enabled:
         return None, lambda: None
     from tqdm import tqdm
@@ -52,7 +54,9 @@ def _progress(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callabl
 
     def update(k: int, n: int) -> None:
         if "bar" not in bar:
-            bar["bar"] = tqdm(total=n, unit="step", unit_scale=True, file=sys.stderr, leave=False)
+            bar["bar"] = tqdm(
+                total=n, unit=unit, unit_scale=unit == "step", file=sys.stderr, leave=False
+            )
         b = bar["bar"]
         b.update(k - b.n)
 
@@ -186,6 +190,8 @@ def _print_mtpa(d: dict[str, Any]) -> None:
     print(f"{d['scenario']}: {d['paper']}  (engine {d['engine']})")
     if d["duration"] is not None:
         print(f"NOTE: runs shortened to {d['duration']:g} s")
+    if d.get("settings"):
+        print("every run with " + ", ".join(f"{k} = {v}" for k, v in d["settings"].items()))
     print(
         f"{'strategy':<14} {'form':<10} {'L_d':>4} {'L_q':>4} {'T_L':>5} {'theta':>7} "
         f"{'MTPA':>7} {'error':>6} {'|i_s|':>8} {'MTPA':>8} {'excess':>7} {'i_d=0':>8} "
@@ -221,9 +227,70 @@ def _row_label(r: dict[str, Any]) -> str:
     return str(r.get("label") or r["strategy"])
 
 
+def cmd_sweep(a: argparse.Namespace) -> int:
+    update, close = _progress(sys.stderr.isatty() and not a.json, unit="run")
+    try:
+        r = sweep.sweep(
+            a.scenario,
+            strategies=[s for s in (a.strategy or "").split(",") if s],
+            sets=a.set or [],
+            duration=a.duration,
+            out=a.out,
+            record=a.record,
+            figures=a.figures,
+            scheduler=a.scheduler,
+            jobs=a.jobs,
+            progress=update,
+        )
+    finally:
+        close()
+    if a.json:
+        print(dumps(r.as_dict()))
+    else:
+        _print_sweep(r)
+    return 130 if r.interrupted else 0
+
+
+def _print_sweep(r: sweep.SweepResult) -> None:
+    keys = list(dict.fromkeys(k for row in r.rows for k in row.settings))
+    widths = [max(len(k.rsplit(".", 1)[-1]), 6) for k in keys]
+    head = " ".join(f"{k.rsplit('.', 1)[-1]:>{w}}" for k, w in zip(keys, widths))
+    print(f"{'strategy':<14} {head} {'T_RMSE':>8} {'psi_RMSE':>9} {'f_ave':>8} {'THD_a':>7}")
+    print(f"{'':<14} {' ' * len(head)} {'N·m':>8} {'Wb':>9} {'kHz':>8} {'%':>7}")
+    for row in r.rows:
+        values = " ".join(f"{str(row.settings.get(k)):>{w}}" for k, w in zip(keys, widths))
+        if row.error:
+            print(f"{row.strategy:<14} {values} error: {row.error}")
+            continue
+        m = row.metrics or {}
+        print(
+            f"{row.strategy:<14} {values} {m['t_rmse']:>8.4f} {m['psi_rmse']:>9.5f} "
+            f"{m['f_ave_hz'] / 1e3:>8.3f} {100 * m['thd']:>7.2f}"
+        )
+    runs = len(r.rows)
+    print(
+        f"{runs} of {r.cases} runs in {r.wall_s:.1f} s on {r.engine} "
+        f"({runs / r.wall_s:.2f} runs/s)"
+        + ("; interrupted: the rows above are kept" if r.interrupted else "")
+    )
+    for f in [*r.files, *r.figures]:
+        print(f"wrote    {f}")
+
+
 def cmd_reproduce(a: argparse.Namespace) -> int:
+    settings = {}
+    for text in a.set or []:
+        key, values = sweep.parse_set(text)
+        if len(values) != 1:
+            raise ConfigError(f"--set {text}: one value per key here (a grid is `sweep`)")
+        settings[key] = values[0]
     d = reproduce.reproduce(
-        a.scenario, engine=a.engine, repeats=a.repeats, duration=a.duration, figures=a.figures
+        a.scenario,
+        engine=a.engine,
+        repeats=a.repeats,
+        duration=a.duration,
+        figures=a.figures,
+        settings=settings,
     )
     if a.json:
         print(dumps(d))
@@ -235,6 +302,8 @@ def cmd_reproduce(a: argparse.Namespace) -> int:
     print(f"{d['scenario']} vs {d['paper']}  (engine {d['engine']})")
     if d["duration"] is not None:
         print(f"NOTE: runs shortened to {d['duration']:g} s; not comparable with the paper")
+    if d.get("settings"):
+        print("every run with " + ", ".join(f"{k} = {v}" for k, v in d["settings"].items()))
     width = max(len(_row_label(r)) for r in d["rows"]) + 1
     head = f"{'':<{width}}" + "".join(f" {c.title:>17}" for c in cols)
     sub = f"{'':<{width}}" + "".join(f" {'ours':>8} {'paper':>8}" for _ in cols)
@@ -307,6 +376,8 @@ def cmd_bench(a: argparse.Namespace) -> int:
     print(f"in-process with MCAP recording: {d['inprocess_recorded_steps_per_s']:,.0f} steps/s")
     whats = {
         "ros_steps_per_s": "four processes, paired CPUs, SCHED_BATCH, recording on",
+        "ros_immediate_steps_per_s": "the same, speed_loop immediate: the controller waits "
+        "for the speed PI",
         "ros_sched_other_steps_per_s": "four processes, paired CPUs, --sched other, recording on",
         "ros_unpinned_steps_per_s": "four processes, --affinity none --sched other, recording on",
         "composed_steps_per_s": "one process",
@@ -528,6 +599,35 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--json", action="store_true")
     cmp_.set_defaults(func=cmd_compare)
 
+    sw = sub.add_parser(
+        "sweep",
+        help="a grid of in-process runs (strategies x settings) on the local cores or a Dask "
+        "cluster, as one table",
+    )
+    sw.add_argument("scenario", help="scenario name (config/NAME.yaml) or a scenario file")
+    sw.add_argument("--strategy", metavar="A,B,...", help="strategies (default: the scenario's)")
+    sw.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        help="a scenario key and its values (dotted: torque_controller.lambda_psi, "
+        "torque_controller.motor.l_q; *0.7 = 70 %% of the present value); repeat for more keys: "
+        "the grid is their cartesian product",
+    )
+    sw.add_argument("--duration", type=float, help="simulated seconds of every run")
+    sw.add_argument("--out", metavar="DIR", help="write DIR/sweep.csv and DIR/sweep.parquet")
+    sw.add_argument("--record", action="store_true", help="keep every run's bag in DIR/bags/")
+    sw.add_argument("--figures", metavar="DIR", help="each metric against each swept key (PNG)")
+    sw.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run on a Dask cluster (tcp://host:8786; `dask scheduler`, `dask worker ADDRESS`) "
+        "instead of the local cores",
+    )
+    sw.add_argument("--jobs", type=int, help="local processes (default: one per core)")
+    sw.add_argument("--json", action="store_true")
+    sw.set_defaults(func=cmd_sweep)
+
     rp = sub.add_parser("reproduce", help="a paper's table side by side with our figures")
     rp.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES]))
     rp.add_argument("--engine", default="inprocess", choices=run.ENGINES)
@@ -538,6 +638,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--duration", type=float, help="shorten every run to this many simulated seconds"
     )
     rp.add_argument("--figures", metavar="DIR", help="draw the table's runs, overlaid (PNG)")
+    rp.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a scenario setting for every run, e.g. speed_pi.speed_loop=immediate (repeatable)",
+    )
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_reproduce)
 

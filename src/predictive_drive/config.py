@@ -381,3 +381,16 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
             value = present * factor
         params[leaf] = value
     return str(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
+def scenario_with(scenario: str | Path, settings: dict[str, Any], out_dir: Path) -> Path:
+    """The scenario as a file in ``out_dir`` with ``settings`` applied (see
+    :func:`apply_settings`; the file itself when there are none): what a ROS engine's nodes
+    read and the run's bag stores."""
+    path = resolve_scenario_path(scenario)
+    if not settings:
+        return path
+    tag = "_".join(f"{k.rsplit('.', 1)[-1]}_{v}" for k, v in settings.items())
+    out = out_dir / f"{path.stem}_{re.sub(r'[^A-Za-z0-9_.-]', '', tag)}.yaml"
+    out.write_text(apply_settings(path.read_text(), settings, path))
+    return out

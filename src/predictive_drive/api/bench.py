@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import load_scenario
+from ..config import load_scenario, scenario_with
 from ..core.control import strategy_names
 from ..core.metrics import compute_metrics
 from ..core.runner import run_inprocess
@@ -25,12 +25,14 @@ def graph_rate(
     duration: float = 2.0,
     affinity: str = "paired",
     sched: str = "batch",
+    speed_loop: str = "one_step",
 ) -> dict[str, float]:
     """Steps/s of a graph engine with recording on, in one run (im_paper, db_mptc): the
     least-squares slope of step against wall time over the /clock samples the launcher sees
     between 20 % and 90 % of the run (start-up and the end excluded). The launcher's /clock
     watch runs meanwhile (it costs the graph a few per cent). ``steps_per_s`` is None when the
-    run gave too few samples for a slope."""
+    run gave too few samples for a slope. ``speed_loop``: the scenario's speed-loop timing
+    (``immediate``: the controller waits for the speed PI's answer to each state)."""
     samples: list[tuple[float, int]] = []
 
     def seen(k: int, n: int) -> None:
@@ -38,8 +40,9 @@ def graph_rate(
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
+        settings = {} if speed_loop == "one_step" else {"speed_pi.speed_loop": speed_loop}
         r = run(
-            "im_paper",
+            scenario_with("im_paper", settings, Path(tmp)),
             strategy="db_mptc",
             duration=duration,
             engine=engine,
@@ -88,13 +91,14 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str
         n = run_inprocess_to_bag(sc.with_duration(steps * sc.ts), Path(tmp) / "bench")
         out["inprocess_recorded_steps_per_s"] = n / (time.perf_counter() - t0)
     if ros:
-        for engine, affinity, sched, key in (
-            ("ros", "paired", "batch", "ros_steps_per_s"),  # the defaults
-            ("ros", "paired", "other", "ros_sched_other_steps_per_s"),
-            ("ros", "none", "other", "ros_unpinned_steps_per_s"),  # all left to the kernel
-            ("composed", "none", "other", "composed_steps_per_s"),  # one process: nothing to place
+        for engine, affinity, sched, loop, key in (
+            ("ros", "paired", "batch", "one_step", "ros_steps_per_s"),  # the defaults
+            ("ros", "paired", "batch", "immediate", "ros_immediate_steps_per_s"),
+            ("ros", "paired", "other", "one_step", "ros_sched_other_steps_per_s"),
+            ("ros", "none", "other", "one_step", "ros_unpinned_steps_per_s"),  # all to the kernel
+            ("composed", "none", "other", "one_step", "composed_steps_per_s"),  # one process
         ):
-            g = graph_rate(engine, affinity=affinity, sched=sched)
+            g = graph_rate(engine, affinity=affinity, sched=sched, speed_loop=loop)
             out[key] = g["steps_per_s"]
             out[key.replace("steps_per_s", "startup_s")] = g["startup_s"]
     return out

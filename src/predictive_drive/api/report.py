@@ -50,16 +50,20 @@ def metrics_window(sc: Scenario) -> tuple[float, float]:
     return start, end
 
 
-def evaluate(bag: str | Path) -> Evaluation:
-    """Metrics of a recording over its scenario's window, from the recording alone."""
-    trace, info = read_bag(bag)
-    sc = scenario_of(info.info, info.path)
+def metrics_of(trace: Trace, sc: Scenario) -> Metrics:
+    """A run's metrics over its scenario's window (and THD window, when the run reaches it)."""
     start, end = metrics_window(sc)
     thd = sc.logger.thd_window
     if thd and thd[1] > trace.steps * trace.ts:
         thd = ()  # a run (or a cut recording) that ends before the THD window: no THD
-    metrics = compute_metrics(trace, t_start=start, t_end=end, thd_window=thd)
-    return Evaluation(trace, info, sc, metrics)
+    return compute_metrics(trace, t_start=start, t_end=end, thd_window=thd)
+
+
+def evaluate(bag: str | Path) -> Evaluation:
+    """Metrics of a recording over its scenario's window, from the recording alone."""
+    trace, info = read_bag(bag)
+    sc = scenario_of(info.info, info.path)
+    return Evaluation(trace, info, sc, metrics_of(trace, sc))
 
 
 def report(bag: str | Path, *, figures: str | Path | None = None) -> dict[str, Any]:

@@ -9,82 +9,86 @@ import os
 import re
 import tempfile
 import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
-from ..config import apply_settings, load_scenario, resolve_scenario_path
+from ..bag import check_new_bag
+from ..config import load_scenario, scenario_with
 from ..core.analysis import load_steps
 from ..core.control.mtpa import mtpa_point
-from ..errors import ConfigError
+from ..core.scenario import Scenario
+from ..core.trace import Trace
+from ..errors import ConfigError, PredictiveDriveError
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, MTPAStudy
 from .compare import compare
 from .controller_replay import controller_replay
 from .report import evaluate
-from .run import RunResult, run
+from .run import run
+from .sweep import Analysis, Case, Row, run_cases
 
-__all__ = ["reproduce", "scenario_with"]
-
-T = TypeVar("T")
-R = TypeVar("R")
+__all__ = ["mtpa_steps", "reproduce"]
 
 
-def scenario_with(scenario: str | Path, settings: dict[str, Any], out_dir: Path) -> Path:
-    """The scenario as a file with ``settings`` applied (the file itself when there are none);
-    the copy is what the run's bag stores."""
-    path = resolve_scenario_path(scenario)
-    if not settings:
-        return path
-    tag = "_".join(f"{k.rsplit('.', 1)[-1]}_{v}" for k, v in settings.items())
-    out = out_dir / f"{path.stem}_{re.sub(r'[^A-Za-z0-9_.-]', '', tag)}.yaml"
-    out.write_text(apply_settings(path.read_text(), settings, path))
-    return out
-
-
-def _run_with(
+def _runs(
     scenario: str,
-    strategy: str,
-    settings: dict[str, Any],
+    cases: Sequence[Case],
+    *,
     engine: str,
-    out: str,
     duration: float | None,
-) -> RunResult:
-    with tempfile.TemporaryDirectory() as tmp:
-        path = scenario_with(scenario, settings, Path(tmp))
-        return run(path, strategy=strategy, engine=engine, out=out, duration=duration)
+    jobs: int | None,
+    analysis: Analysis | None = None,
+) -> list[Row]:
+    """The cases, each recorded to its bag: a sweep across the cores (in-process), or one
+    graph at a time (a ROS engine, which already uses the cores). A failed case fails the
+    reproduction, naming it."""
+    if engine == "inprocess":
+        result = run_cases(scenario, cases, duration=duration, jobs=jobs, analysis=analysis)
+        if result.interrupted:
+            raise KeyboardInterrupt
+        rows = result.rows
+    else:
+        rows = []
+        for c in cases:
+            with tempfile.TemporaryDirectory() as tmp:
+                path = scenario_with(scenario, c.settings, Path(tmp))
+                r = run(path, strategy=c.strategy, engine=engine, out=c.bag, duration=duration)
+            ev = evaluate(r.bag)
+            extra = analysis(ev.trace, ev.scenario) if analysis is not None else {}
+            rows.append(
+                Row(c.strategy, c.settings, ev.metrics.as_dict(), None, r.wall_s, c.bag, extra)
+            )
+    for row in rows:
+        if row.error:
+            raise PredictiveDriveError(
+                f"reproduce {scenario}: the run {row.strategy} {row.settings or ''} failed: "
+                f"{row.error}"
+            )
+    return rows
 
 
-def _table_row(args: tuple[str, str, dict[str, Any], str, str, float | None]) -> dict[str, Any]:
-    r = _run_with(*args)
-    m = r.metrics
-    strategy, settings = args[1], args[2]
-    row: dict[str, Any] = {"strategy": strategy, "settings": settings}
-    row.update(
-        t_rmse=m.t_rmse,
-        psi_rmse=m.psi_rmse,
-        f_ave_hz=m.f_ave_hz,
-        cal_ave=m.cal_ave,
-        deadbeat_share=m.deadbeat_share,
-        zero_share=m.utilization[0],
-        thd=m.thd,
-        thd_harmonics=m.thd_harmonics,
-        compute_us_per_step=m.compute_ns_median / 1e3,
-        compute_us_mean=m.compute_ns_mean / 1e3,
-        bag=str(r.bag),
-        wall_s=r.wall_s,
-    )
-    return row
+def _table_row(row: Row) -> dict[str, Any]:
+    m = row.metrics or {}
+    return {
+        "strategy": row.strategy,
+        "settings": row.settings,
+        "t_rmse": m["t_rmse"],
+        "psi_rmse": m["psi_rmse"],
+        "f_ave_hz": m["f_ave_hz"],
+        "cal_ave": m["cal_ave"],
+        "deadbeat_share": m["deadbeat_share"],
+        "zero_share": m["utilization"][0],
+        "thd": m["thd"],
+        "thd_harmonics": m["thd_harmonics"],
+        "compute_us_per_step": m["compute_ns_median"] / 1e3,
+        "compute_us_mean": m["compute_ns_mean"] / 1e3,
+        "bag": row.bag,
+        "wall_s": row.wall_s,
+    }
 
 
-def _in_parallel(fn: Callable[[T], R], args: Sequence[T], engine: str, jobs: int | None) -> list[R]:
-    """``fn`` over ``args``, across the cores for the in-process engine (the ROS engines run one
-    graph at a time: each already uses the cores)."""
-    workers = 1 if engine != "inprocess" else (jobs or min(len(args), os.cpu_count() or 1))
-    if workers > 1:
-        with ProcessPoolExecutor(workers) as pool:
-            return list(pool.map(fn, args))
-    return [fn(a) for a in args]
+def _bag(out_root: str | Path, name: str) -> str:
+    return str(check_new_bag(Path(out_root) / name).resolve())
 
 
 def reproduce(
@@ -96,14 +100,22 @@ def reproduce(
     repeats: int = 5,
     duration: float | None = None,
     figures: str | Path | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study. ``duration`` shortens every run (a
     quick look; the figures then do not compare with the paper's). ``figures``: a folder for
-    the runs drawn overlaid (PNG)."""
+    the runs drawn overlaid (PNG). ``settings``: scenario settings applied to every run (e.g.
+    ``{"speed_pi.speed_loop": "immediate"}``), besides each row's own."""
+    settings = dict(settings or {})
     if scenario in MTPA_STUDIES:
         out = reproduce_mtpa(
-            scenario, engine=engine, out_root=out_root, jobs=jobs, duration=duration
+            scenario,
+            engine=engine,
+            out_root=out_root,
+            jobs=jobs,
+            duration=duration,
+            settings=settings,
         )
         if figures is not None:  # the runs at exact parameters, one per strategy and form
             bags = list(dict.fromkeys(r["bag"] for r in out["rows"] if _exact(r, r["strategy"])))
@@ -116,12 +128,13 @@ def reproduce(
         )
     table = PAPER_TABLES[scenario]
     stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"
-    args = []
+    cases = []
     for row in table.rows:
         tag = re.sub(r"[^A-Za-z0-9_.-]", "", row.name.replace(" ", "_"))
-        out = Path(out_root) / f"reproduce_{scenario}_{tag}_{stamp}"
-        args.append((scenario, row.strategy, row.settings, engine, str(out), duration))
-    rows = _in_parallel(_table_row, args, engine, jobs)
+        bag = _bag(out_root, f"reproduce_{scenario}_{tag}_{stamp}")
+        cases.append(Case(row.strategy, {**settings, **row.settings}, bag))
+    runs = _runs(scenario, cases, engine=engine, duration=duration, jobs=jobs)
+    rows = [_table_row(r) for r in runs]
     for row, spec in zip(rows, table.rows):
         row["paper"] = spec.paper
         row["label"] = spec.name
@@ -140,6 +153,7 @@ def reproduce(
         "scenario": scenario,
         "engine": engine,
         "duration": duration,
+        "settings": settings,
         "paper": table.caption,
         "how": table.how,
         "rows": rows,
@@ -166,30 +180,23 @@ def _mtpa_runs(study: MTPAStudy) -> list[tuple[str, dict[str, Any], dict[str, fl
     return out
 
 
-def _mtpa_rows(
-    args: tuple[str, str, dict[str, Any], str, str, float | None, dict[str, float]],
-) -> list[dict[str, Any]]:
-    """Run one case of an MTPA study and describe each of its load steps."""
-    scenario, strategy, settings, engine, out, duration, mismatch = args
-    r = _run_with(scenario, strategy, settings, engine, out, duration)
-    ev = evaluate(r.bag)
-    sc, plant = ev.scenario, ev.scenario.plant.motor
+def mtpa_steps(trace: Trace, sc: Scenario) -> dict[str, Any]:
+    """The load steps of a run of an MTPA study, each with the true machine's MTPA point (run
+    in the sweep's worker)."""
+    plant = sc.plant.motor
     steps = load_steps(
-        ev.trace,
+        trace,
         load_times=sc.plant.load_times,
         load_values=sc.plant.load_values,
         average_s=1.0 / sc.controller.injection_hz,
     )
-    rows = []
+    out = []
     for st in steps:
         best = mtpa_point(
             st.load_torque, p=plant.p, psi_f=plant.psi_f, l_d=plant.l_d, l_q=plant.l_q
         )
-        rows.append(
+        out.append(
             {
-                "strategy": strategy,
-                "form": sc.controller.injection_form if strategy == "foc_injection" else None,
-                "mismatch": mismatch,
                 "load_torque": st.load_torque,
                 "theta_deg": math.degrees(st.theta),
                 "theta_mtpa_deg": math.degrees(best.theta),
@@ -199,10 +206,10 @@ def _mtpa_rows(
                 "settle_s": st.settle_s,
                 "t_start": st.t_start,
                 "t_end": st.t_end,
-                "bag": str(r.bag),
             }
         )
-    return rows
+    form = sc.controller.injection_form if sc.strategy == "foc_injection" else None
+    return {"form": form, "load_steps": out}
 
 
 def reproduce_mtpa(
@@ -212,24 +219,39 @@ def reproduce_mtpa(
     out_root: str | Path = "bags",
     jobs: int | None = None,
     duration: float | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """An MTPA study (:data:`~predictive_drive.reports.papers.MTPA_STUDIES`): one row per run and
-    load step; the paper's claims checked per load where it makes any."""
+    """An MTPA study (:data:`~predictive_drive.reports.papers.MTPA_STUDIES`): a sweep of the
+    strategies over the controller-side inductance mismatches, one row per run and load step;
+    the paper's claims checked per load where it makes any."""
     study = MTPA_STUDIES[scenario]
     load_scenario(scenario)  # a bad scenario fails before anything runs
     stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"
-    args = []
-    for strategy, settings, mismatch in _mtpa_runs(study):
+    cases, mismatches = [], []
+    for strategy, case_settings, mismatch in _mtpa_runs(study):
         tag = f"{strategy}_ld{mismatch['l_d']:g}_lq{mismatch['l_q']:g}"
-        if settings.get("torque_controller.injection_form") == "as_printed":
+        if case_settings.get("torque_controller.injection_form") == "as_printed":
             tag += "_as_printed"
-        out = Path(out_root) / f"reproduce_{scenario}_{tag}_{stamp}"
-        args.append((scenario, strategy, settings, engine, str(out), duration, mismatch))
-    rows = [row for rs in _in_parallel(_mtpa_rows, args, engine, jobs) for row in rs]
+        bag = _bag(out_root, f"reproduce_{scenario}_{tag}_{stamp}")
+        cases.append(Case(strategy, {**(settings or {}), **case_settings}, bag))
+        mismatches.append(mismatch)
+    runs = _runs(scenario, cases, engine=engine, duration=duration, jobs=jobs, analysis=mtpa_steps)
+    rows = [
+        {
+            "strategy": r.strategy,
+            "form": r.extra["form"],
+            "mismatch": mismatch,
+            **step,
+            "bag": r.bag,
+        }
+        for r, mismatch in zip(runs, mismatches)
+        for step in r.extra["load_steps"]
+    ]
     return {
         "scenario": scenario,
         "engine": engine,
         "duration": duration,
+        "settings": settings or {},
         "paper": study.caption,
         "how": study.how,
         "rows": rows,

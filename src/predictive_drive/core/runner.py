@@ -71,7 +71,8 @@ def run_inprocess(
     pending = sorted(switches)
     next_switch = pending[0][0] if pending else n
     state = plant.state()
-    ref = pi.initial()
+    immediate = pi.immediate  # T* from state k applies at k (else at k+1: see SpeedPI)
+    ref = pi.step(state) if immediate else pi.initial()
     every = max(1, n // 200)
     for k in range(n):
         if k >= next_switch:
@@ -86,8 +87,12 @@ def run_inprocess(
             s("state", state)
             s("reference", ref)
             s("command", cmd)
-        ref = pi.step(state)
-        state = plant.step(cmd)
+        if immediate:
+            state = plant.step(cmd)
+            ref = pi.step(state)
+        else:
+            ref = pi.step(state)
+            state = plant.step(cmd)
         if progress is not None and k % every == 0:
             progress(k)
     s_add(s_pack(*state))

@@ -22,7 +22,7 @@ from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
 
-__all__ = ["Run", "compare_figures", "run_figures", "save"]
+__all__ = ["Run", "compare_figures", "run_figures", "save", "sweep_figures"]
 
 RPM = 60.0 / (2.0 * math.pi)
 
@@ -201,6 +201,62 @@ def compare_figures(runs: Sequence[Run]) -> dict[str, Any]:
     ax.set(xlabel="t / s", ylabel="|ψ_s| / Wb", title=f"stator flux: {len(runs)} runs")
     ax.legend()
     figs["flux"] = fig
+    return figs
+
+
+#: the metrics a sweep's figures plot: (key, label, scale)
+SWEEP_METRICS = (
+    ("t_rmse", "T_RMSE (N·m)", 1.0),
+    ("psi_rmse", "ψ_RMSE (Wb)", 1.0),
+    ("f_ave_hz", "f_ave (kHz)", 1e-3),
+    ("thd", "THD_a (%)", 100.0),
+    ("speed_rmse", "speed RMSE (rad/s)", 1.0),
+)
+
+
+def _sweep_x(value: Any) -> float:
+    """A swept value on an axis: a factor ``*f`` as f, a number as itself."""
+    if isinstance(value, str) and value.startswith("*"):
+        return float(value[1:])
+    return float(value)
+
+
+def sweep_figures(rows: Sequence[Any], keys: Sequence[str]) -> dict[str, Any]:
+    """One figure per swept key: each metric against the key's values (factors as numbers), a
+    line per strategy and combination of the other keys; rows with an error are left out."""
+    plt = _pyplot()
+    ok = [r for r in rows if r.error is None and r.metrics]
+    figs: dict[str, Any] = {}
+    metrics = [m for m in SWEEP_METRICS if any(math.isfinite(r.metrics[m[0]]) for r in ok)]
+    if not metrics:
+        return figs  # no run finished: nothing to draw
+    for key in keys:
+        try:
+            xs = {id(r): _sweep_x(r.settings[key]) for r in ok}
+        except (TypeError, ValueError):
+            continue  # a key of names, not numbers: no axis to plot it on
+        fig, axes = plt.subplots(len(metrics), 1, figsize=(7, 2.2 * len(metrics)), sharex=True)
+        axes = np.atleast_1d(axes)
+        groups: dict[str, list[Any]] = {}
+        for r in ok:
+            others = ", ".join(f"{k.rsplit('.', 1)[-1]}={r.settings[k]}" for k in keys if k != key)
+            groups.setdefault(r.strategy + (f" ({others})" if others else ""), []).append(r)
+        for ax, (name, label, scale) in zip(axes, metrics):
+            for glabel, group in groups.items():
+                group = sorted(group, key=lambda r: xs[id(r)])
+                ax.plot(
+                    [xs[id(r)] for r in group],
+                    [scale * r.metrics[name] for r in group],
+                    marker="o",
+                    label=glabel,
+                )
+            ax.set_ylabel(label)
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel(key + (" (factor)" if any(
+            isinstance(r.settings[key], str) for r in ok) else ""))  # fmt: skip
+        axes[0].legend(fontsize=7)
+        fig.tight_layout()
+        figs[f"sweep_{key.replace('.', '_')}"] = fig
     return figs
 
 

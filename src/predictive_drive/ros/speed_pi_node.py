@@ -1,5 +1,6 @@
-"""The speed PI node: state k → reference k+1, the documented one-sample delay (``ros2 run
-predictive_drive speed_pi_node --ros-args --params-file config/<scenario>.yaml``)."""
+"""The speed PI node: state k → reference k+1, the documented one-sample delay, or reference k
+with ``speed_loop: immediate`` (``ros2 run predictive_drive speed_pi_node --ros-args
+--params-file config/<scenario>.yaml``)."""
 
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ _STATE, _REF = CODECS["state"], CODECS["reference"]
 
 
 class SpeedPINode(WatchedNode):
-    """Speed PI: answers state k with the reference for k+1 (and state 0 also with reference 0)."""
+    """Speed PI: answers state k with the reference for k+1 (and state 0 also with reference 0),
+    or, with ``speed_loop: immediate``, with the reference for k (the controller waits for it)."""
 
     section = "speed_pi"
 
@@ -44,10 +46,11 @@ class SpeedPINode(WatchedNode):
         if k == 0:
             # controller and logger must hear reference 0
             self.wait_matched(self.pub_ref, 2, "torque_controller, metrics_logger")
-            self.pub_ref.publish(_REF.encode(self.pi.initial()))
-        if k < self.n:
+            if not self.pi.immediate:
+                self.pub_ref.publish(_REF.encode(self.pi.initial()))
+        if k < self.n or self.pi.immediate:
             self.pub_ref.publish(_REF.encode(self.pi.step(state)))
-        else:
+        if k == self.n:
             self.pub_ref.wait_for_all_acked(Duration(seconds=self.peer_timeout))
             self.finished = True
 

@@ -5,13 +5,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..fields import check_fields, quantity
+from ..fields import check_fields, choice, quantity
 from ..signals import Reference, State, new_record
 from ..timebase import StepProfile
 
 __all__ = ["SpeedPI", "SpeedPIParams"]
 
 RPM = 2.0 * math.pi / 60.0  #: rad/s per r/min
+#: the speed loop's timing (see :attr:`SpeedPIParams.speed_loop`)
+SPEED_LOOPS = ("one_step", "immediate")
 
 
 @dataclass(frozen=True)
@@ -29,6 +31,12 @@ class SpeedPIParams:
     flux_ref: float = quantity("stator-flux reference ψ*", "Wb", gt=0)
     speed_times: tuple[float, ...] = quantity("times of the speed-reference steps", "s", ge=0)
     speed_values_rpm: tuple[float, ...] = quantity("speed reference from each time on", "r/min")
+    speed_loop: str = choice(
+        "when the T* computed from state k applies: one_step (at step k+1: the graph's "
+        "documented one-sample delay) or immediate (at step k: the controller waits for it)",
+        SPEED_LOOPS,
+        default="one_step",
+    )
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -42,8 +50,10 @@ class SpeedPI:
     """T*(k) = sat(Kp·e(k) + I(k)), I(k+1) = I(k) + Ki·Ts·e(k) unless the output saturates in the
     direction of e (clamping anti-windup). ψ* is constant.
 
-    The graph's one-sample delay lives here: ``step(state k)`` returns the reference for step k+1;
-    ``initial()`` is the reference for step 0 (T* = 0).
+    The loop's timing lives here. ``one_step`` (the default, the graph's documented one-sample
+    delay): ``step(state k)`` returns the reference for step k+1, and ``initial()`` is the
+    reference for step 0 (T* = 0). ``immediate``: ``step(state k)`` returns the reference for
+    step k itself (the same T*, applied one step earlier); there is no initial reference.
     """
 
     def __init__(self, params: SpeedPIParams, *, ts: float) -> None:
@@ -52,6 +62,8 @@ class SpeedPI:
         self._speed = params.speed_profile().sampled(ts)
         self._consts = (params.kp, params.ki * ts, params.torque_limit, params.flux_ref)
         self.integral = 0.0
+        self.immediate = params.speed_loop == "immediate"
+        self._lag = 0 if self.immediate else 1  #: the step a reference from state k is for: k + lag
 
     def initial(self) -> Reference:
         return Reference(0.0, 0.0, 0.0, self.params.flux_ref, self._speed.at(0))
@@ -70,5 +82,5 @@ class SpeedPI:
             out, saturated = raw, False
         if not saturated:
             self.integral += ki_ts * e
-        k1 = k + 1
+        k1 = k + self._lag
         return new_record(Reference, (float(k1), k1 * self.ts, out, flux_ref, at(k1)))

@@ -1,0 +1,410 @@
+"""``predictive-drive sweep``: a grid of in-process runs (strategies × scenario settings), on the
+local cores or a Dask cluster, as one table.
+
+A case is a strategy and a set of settings (``apply_settings`` keys: dotted, ``*f`` for a factor
+of the present value). Every case runs the in-process engine on the scenario text with its
+settings applied, in a worker: a process of the local pool, or a Dask worker (``--scheduler``);
+the worker gets the scenario *text*, so a remote machine needs the package but not the scenario
+files. Its row (strategy, settings, every metric, or the error) does not depend on where it ran
+(bit for bit, the measured timings aside: see :data:`MEASURED`). A failed case is a row with its
+error; Ctrl-C (or SIGTERM) keeps the rows finished so far.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import itertools
+import math
+import multiprocessing
+import os
+import signal
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..config import apply_settings, load_scenario_text, resolve_scenario_path
+from ..core.control import strategy_names
+from ..core.runner import run_inprocess
+from ..core.scenario import Scenario
+from ..core.trace import Trace
+from ..errors import ConfigError, PredictiveDriveError
+from .report import metrics_of
+
+__all__ = [
+    "MEASURED",
+    "Case",
+    "Row",
+    "SweepResult",
+    "grid",
+    "parse_set",
+    "run_cases",
+    "sweep",
+    "write_table",
+]
+
+#: row fields measured on the machine that ran the case (they differ from run to run)
+MEASURED = ("compute_ns_mean", "compute_ns_median", "compute_ns_median_by_strategy", "wall_s")
+#: a function of a finished run, run in the worker: more for its row (``extra``)
+Analysis = Callable[[Trace, Scenario], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Case:
+    strategy: str
+    settings: dict[str, Any] = field(default_factory=dict)
+    bag: str | None = None  #: record the run to this bag directory (None: no recording)
+    duration: float | None = None  #: s of simulated time (None: the sweep's, or the scenario's)
+
+
+@dataclass
+class Row:
+    strategy: str
+    settings: dict[str, Any]
+    metrics: dict[str, Any] | None = None
+    error: str | None = None
+    wall_s: float = math.nan
+    bag: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {
+            "strategy": self.strategy,
+            "settings": self.settings,
+            "metrics": self.metrics,
+            "error": self.error,
+            "wall_s": self.wall_s,
+        }
+        if self.bag is not None:
+            out["bag"] = self.bag
+        out.update(self.extra)
+        return out
+
+
+@dataclass
+class SweepResult:
+    scenario: str
+    rows: list[Row]  #: in case order; those not run (interrupted) are missing
+    cases: int
+    engine: str  #: "local (N processes)" or "dask (ADDRESS, N workers)"
+    wall_s: float
+    interrupted: bool = False
+    files: list[str] = field(default_factory=list)
+    figures: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario,
+            "cases": self.cases,
+            "engine": self.engine,
+            "wall_s": self.wall_s,
+            "interrupted": self.interrupted,
+            "rows": [r.as_dict() for r in self.rows],
+            "files": self.files,
+            "figures": self.figures,
+        }
+
+
+def parse_set(text: str) -> tuple[str, list[Any]]:
+    """``KEY=V1,V2,…`` → (key, values); values read as a parameter file reads them (``5e-5``
+    is a number), ``*f`` kept as a factor. ConfigError names what is wrong."""
+    key, sep, values = text.partition("=")
+    if not sep or not key.strip() or not values.strip():
+        raise ConfigError(
+            f"--set {text!r}: expected KEY=V1,V2,... (e.g. torque_controller.lambda_psi=0,50)"
+        )
+    out: list[Any] = []
+    for v in values.split(","):
+        v = v.strip()
+        if not v:
+            raise ConfigError(f"--set {text!r}: an empty value")
+        if v.startswith("*"):
+            try:
+                float(v[1:])
+            except ValueError:
+                raise ConfigError(f"--set {text!r}: {v!r} is not *<number>") from None
+            out.append(v)
+        else:
+            from ..config import parse_yaml
+
+            out.append(parse_yaml(v, f"--set {key}"))
+    return key.strip(), out
+
+
+def grid(strategies: Sequence[str], sets: Sequence[tuple[str, Sequence[Any]]]) -> list[Case]:
+    """The cartesian product: every strategy with every combination of the settings' values."""
+    keys = [k for k, _ in sets]
+    if len(set(keys)) != len(keys):
+        raise ConfigError(f"--set: a key given twice ({', '.join(keys)})")
+    combos = itertools.product(*(values for _, values in sets))
+    settings = [dict(zip(keys, combo)) for combo in combos]
+    return [Case(s, dict(st)) for s in strategies for st in settings]
+
+
+def _case_text(text: str, source: Path, case: Case) -> str:
+    """The scenario text with the case's settings applied (checked by the caller)."""
+    return apply_settings(text, case.settings, source) if case.settings else text
+
+
+def run_case(
+    text: str,
+    where: str,
+    case: Case,
+    duration: float | None = None,
+    analysis: Analysis | None = None,
+) -> Row:
+    """One case, start to end, in whichever process runs it: the scenario text with its
+    settings, run in-process (recorded when the case names a bag), its metrics and ``analysis``.
+    Never raises for the case's own failure: that is the row's error."""
+    t0 = time.perf_counter()
+    row = Row(case.strategy, dict(case.settings), bag=case.bag)
+    try:
+        sc = load_scenario_text(text, where).with_strategy(case.strategy)
+        if case.duration is not None or duration is not None:
+            sc = sc.with_duration(case.duration if case.duration is not None else duration)
+        if case.bag is not None:
+            from .report import evaluate
+            from .run import run_inprocess_to_bag
+
+            run_inprocess_to_bag(sc, Path(case.bag))
+            ev = evaluate(case.bag)
+            trace, metrics = ev.trace, ev.metrics
+        else:
+            trace = run_inprocess(sc)
+            metrics = metrics_of(trace, sc)
+        row.metrics = metrics.as_dict()
+        if analysis is not None:
+            row.extra = analysis(trace, sc)
+    except (PredictiveDriveError, ArithmeticError, ValueError) as e:
+        row.error = f"{type(e).__name__}: {e}"
+    row.wall_s = time.perf_counter() - t0
+    return row
+
+
+def _quiet_worker() -> None:
+    """A local worker leaves Ctrl-C to the sweep, which keeps what is done and stops it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextmanager
+def _executor(scheduler: str | None, jobs: int | None, cases: int) -> Iterator[tuple[Any, str]]:
+    """The pool the cases go to, as a concurrent.futures executor: the local cores' processes,
+    or a Dask cluster's workers."""
+    if scheduler is None:
+        workers = max(1, min(cases, jobs or os.cpu_count() or 1))
+        # forkserver, not fork: the calling process may hold threads (rclpy, a live view, a
+        # Dask client) whose locks a forked child would inherit held
+        ctx = multiprocessing.get_context("forkserver")
+        pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_quiet_worker)
+        try:
+            yield pool, f"local ({workers} process{'es' if workers > 1 else ''})"
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        return
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ConfigError(
+            "--scheduler needs dask.distributed: pip install 'predictive_drive[sweep]'"
+        ) from None
+    try:
+        client = Client(scheduler, timeout=10)
+    except (OSError, TimeoutError) as e:
+        raise ConfigError(
+            f"--scheduler {scheduler}: no Dask scheduler answers there ({e})"
+        ) from None
+    try:
+        n = len(client.scheduler_info().get("workers", {}))
+        if n == 0:
+            raise ConfigError(f"--scheduler {scheduler}: the cluster has no workers")
+        yield client.get_executor(pure=False), f"dask ({scheduler}, {n} workers)"
+    finally:
+        client.close()
+
+
+def run_cases(
+    scenario: str | Path,
+    cases: Sequence[Case],
+    *,
+    duration: float | None = None,
+    scheduler: str | None = None,
+    jobs: int | None = None,
+    analysis: Analysis | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> SweepResult:
+    """Run ``cases`` of ``scenario`` on the local cores or the Dask cluster at ``scheduler``.
+    Settings are applied and checked here first: a key the scenario lacks fails the sweep
+    before anything runs; a value the scenario refuses is that case's error row."""
+    path = resolve_scenario_path(scenario)
+    text = path.read_text(encoding="utf-8")
+    where = str(path)
+    base = load_scenario_text(text, where)
+    names = strategy_names(base.family)
+    for c in cases:
+        if c.strategy not in names:
+            raise ConfigError(
+                f"--strategy {c.strategy}: not a strategy of {base.family}; valid: {', '.join(names)}"
+            )
+    texts = [_case_text(text, path, c) for c in cases]  # ConfigError: an unknown key
+    t0 = time.perf_counter()
+    done: dict[int, Row] = {}
+    interrupted = False
+    with _executor(scheduler, jobs, len(cases)) as (pool, engine):
+        futures = {
+            pool.submit(run_case, t, _where(where, c), c, duration, analysis): i
+            for i, (t, c) in enumerate(zip(texts, cases))
+        }
+        try:
+            for fut in cf.as_completed(futures):
+                i = futures[fut]
+                try:
+                    done[i] = fut.result()
+                except Exception as e:  # noqa: BLE001 — the worker died, not the case
+                    done[i] = Row(
+                        cases[i].strategy, dict(cases[i].settings), error=f"{type(e).__name__}: {e}"
+                    )
+                if progress is not None:
+                    progress(len(done), len(cases))
+        except KeyboardInterrupt:
+            interrupted = True
+            for fut in futures:
+                fut.cancel()
+            if scheduler is None:
+                _stop_local(pool)
+    rows = [done[i] for i in sorted(done)]
+    return SweepResult(path.stem, rows, len(cases), engine, time.perf_counter() - t0, interrupted)
+
+
+def _where(path: str, case: Case) -> str:
+    """How errors name a case's scenario: the file and the settings applied to it."""
+    if not case.settings:
+        return path
+    return f"{path} with " + ", ".join(f"{k}={v}" for k, v in case.settings.items())
+
+
+def _stop_local(pool: cf.ProcessPoolExecutor) -> None:
+    """End the local workers now (their cases are lost; the finished rows are kept)."""
+    for p in list(getattr(pool, "_processes", {}).values()):
+        if p.is_alive():
+            p.kill()
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+# --- the table -------------------------------------------------------------------------------
+
+#: metrics in the table, in order (utilization is spread over V0..V6)
+COLUMNS = (
+    "t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "speed_rmse", "thd",
+    "thd_harmonics", "thd_cycles", "thd_fundamental_hz", "steps", "t_start", "t_end",
+    "compute_ns_mean", "compute_ns_median",
+)  # fmt: skip
+
+
+def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
+    """Header and rows: strategy, one column per swept key (the value as given), every metric,
+    utilization V0..V6, error, wall_s."""
+    keys = list(dict.fromkeys(k for r in rows for k in r.settings))
+    header = ["strategy", *keys, *COLUMNS, *(f"util_v{i}" for i in range(7)), "error", "wall_s"]
+    out = []
+    for r in rows:
+        m = r.metrics or {}
+        util = list(m.get("utilization", [math.nan] * 7)) + [math.nan] * 7
+        out.append(
+            [
+                r.strategy,
+                *(r.settings.get(k) for k in keys),
+                *(m.get(c, math.nan) for c in COLUMNS),
+                *util[:7],
+                r.error or "",
+                r.wall_s,
+            ]
+        )
+    return header, out
+
+
+def write_table(rows: Sequence[Row], directory: str | Path, name: str = "sweep") -> list[Path]:
+    """``<name>.csv`` and ``<name>.parquet`` in ``directory``; written whole or not at all
+    (each to a temporary file, then renamed)."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise ConfigError(
+            "sweep --out needs pyarrow for the Parquet table: pip install 'predictive_drive[sweep]'"
+        ) from None
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    header, body = table(rows)
+    csv_path, pq_path = d / f"{name}.csv", d / f"{name}.parquet"
+    tmp = csv_path.with_suffix(".csv.tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for line in body:
+            w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in line])
+    tmp.replace(csv_path)
+    columns = {}
+    for j, name_ in enumerate(header):
+        values = [line[j] for line in body]
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+        columns[name_] = (
+            pa.array([float(v) for v in values], pa.float64())
+            if numeric and name_ not in ("strategy", "error")
+            else pa.array(["" if v is None else str(v) for v in values], pa.string())
+        )
+    tmp = pq_path.with_suffix(".parquet.tmp")
+    pq.write_table(pa.table(columns), tmp)
+    tmp.replace(pq_path)
+    return [csv_path, pq_path]
+
+
+def sweep(
+    scenario: str | Path,
+    *,
+    strategies: Sequence[str] = (),
+    sets: Sequence[str] = (),
+    duration: float | None = None,
+    out: str | Path | None = None,
+    record: bool = False,
+    figures: str | Path | None = None,
+    scheduler: str | None = None,
+    jobs: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> SweepResult:
+    """The command: the grid of ``strategies`` (default: the scenario's) × every ``--set``,
+    run, written (``out``: CSV + Parquet, and the bags with ``record``), drawn (``figures``)."""
+    path = resolve_scenario_path(scenario)
+    base = load_scenario_text(path.read_text(encoding="utf-8"), path)
+    parsed = [parse_set(s) for s in sets]
+    cases = grid(list(strategies) or [base.strategy], parsed)
+    if record:
+        if out is None:
+            raise ConfigError("sweep --record needs --out DIR (the bags go to DIR/bags/)")
+        from ..bag import check_new_bag
+
+        for i, c in enumerate(cases):
+            tag = "_".join(f"{k.rsplit('.', 1)[-1]}{v}" for k, v in c.settings.items())
+            bag = Path(out) / "bags" / f"{i:03d}_{c.strategy}{'_' + tag if tag else ''}"
+            cases[i] = Case(c.strategy, c.settings, str(check_new_bag(bag).resolve()))
+    if out is not None:
+        try:  # the table can be written: checked before the runs, not after
+            import pyarrow  # noqa: F401
+        except ImportError:
+            write_table([], out)
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise ConfigError(f"--duration must be a positive number of seconds, got {duration}")
+    result = run_cases(
+        path, cases, duration=duration, scheduler=scheduler, jobs=jobs, progress=progress
+    )
+    if out is not None:
+        result.files = [str(p) for p in write_table(result.rows, out)]
+    if figures is not None and result.rows:
+        from ..reports.figures import save, sweep_figures
+
+        keys = [k for k, _ in parsed]
+        result.figures = [str(p) for p in save(sweep_figures(result.rows, keys), figures)]
+    return result

@@ -1,0 +1,176 @@
+"""Sweeps: the grid, its rows against direct runs, the table files, failures and Ctrl-C, and the
+same grid on a Dask cluster of a scheduler and two workers started here."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from predictive_drive.api.report import metrics_of
+from predictive_drive.api.sweep import MEASURED, Case, grid, parse_set, run_cases, sweep
+from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+from predictive_drive.core.runner import run_inprocess
+from predictive_drive.errors import ConfigError
+from procs import dask_cluster, descendants
+
+GRID = dict(
+    strategies=["mptc", "db_mptc"],
+    sets=["torque_controller.lambda_psi=20,50,100", "torque_controller.motor.r_s=*0.9,*1,*1.1"],
+    duration=0.02,
+)
+
+
+def same_rows(a, b) -> None:
+    """Rows equal bit for bit but the timings measured where they ran."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert (x.strategy, x.settings, x.error) == (y.strategy, y.settings, y.error)
+        mx = {k: v for k, v in (x.metrics or {}).items() if k not in MEASURED}
+        my = {k: v for k, v in (y.metrics or {}).items() if k not in MEASURED}
+        assert mx.keys() == my.keys()
+        for k in mx:
+            assert mx[k] == my[k] or (mx[k] != mx[k] and my[k] != my[k]), k  # NaN == NaN here
+
+
+@pytest.mark.core
+def test_the_grid_is_the_cartesian_product_of_strategies_and_settings():
+    sets = [parse_set("a.b=1,2e-3"), parse_set("c.d=*0.7,*1.3,x")]
+    assert sets == [("a.b", [1, 0.002]), ("c.d", ["*0.7", "*1.3", "x"])]
+    cases = grid(["s1", "s2"], sets)
+    assert len(cases) == 2 * 2 * 3
+    assert cases[0] == Case("s1", {"a.b": 1, "c.d": "*0.7"})
+    assert cases[-1] == Case("s2", {"a.b": 0.002, "c.d": "x"})
+    assert len({(c.strategy, tuple(c.settings.items())) for c in cases}) == 12
+    for bad, msg in (("a.b", "expected KEY=V1"), ("a.b=1,,2", "an empty value"),
+                     ("a.b=*x", "not \\*<number>")):  # fmt: skip
+        with pytest.raises(ConfigError, match=msg):
+            parse_set(bad)
+    with pytest.raises(ConfigError, match="a key given twice"):
+        grid(["s"], [("k", [1]), ("k", [2])])
+
+
+@pytest.mark.core
+def test_a_sweep_row_is_the_run_with_its_settings(tmp_path):
+    """Every row equals a direct in-process run of the scenario with the row's settings applied
+    (factors of the present value); the CSV and Parquet tables hold the rows; the figures
+    are drawn; a value the scenario refuses is that row's error, the others run."""
+    r = sweep(
+        "im_short",
+        strategies=["mptc", "db_mptc"],
+        sets=["torque_controller.lambda_psi=20,50", "torque_controller.motor.l_m=*0.95,*-1"],
+        duration=0.02,
+        out=tmp_path / "t",
+        figures=tmp_path / "f",
+        jobs=2,
+    )
+    assert len(r.rows) == r.cases == 8 and not r.interrupted
+    bad = [row for row in r.rows if row.error]
+    assert len(bad) == 4 and all(
+        row.settings["torque_controller.motor.l_m"] == "*-1" for row in bad
+    )
+    assert "InductionMotor.l_m must be a finite number > 0" in bad[0].error
+    assert "with torque_controller.lambda_psi=" in bad[0].error  # names the case
+    path = resolve_scenario_path("im_short")
+    for row in r.rows:
+        if row.error:
+            continue
+        text = apply_settings(path.read_text(), row.settings, path)
+        sc = load_scenario_text(text, path).with_strategy(row.strategy).with_duration(0.02)
+        assert sc.controller.motor.l_m == pytest.approx(0.2751 * 0.95)
+        m = metrics_of(run_inprocess(sc), sc).as_dict()
+        same_rows([row], [type(row)(row.strategy, row.settings, m)])
+    with open(tmp_path / "t" / "sweep.csv") as f:
+        lines = list(csv.DictReader(f))
+    assert [ln["strategy"] for ln in lines] == [row.strategy for row in r.rows]
+    for ln, row in zip(lines, r.rows):
+        if row.error:
+            assert ln["error"] == row.error and ln["t_rmse"] == "nan"
+        else:
+            assert float(ln["t_rmse"]) == row.metrics["t_rmse"]  # written exactly (repr)
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(tmp_path / "t" / "sweep.parquet").to_pydict()
+    assert t["torque_controller.lambda_psi"] == [20.0, 20.0, 50.0, 50.0] * 2
+    assert t["torque_controller.motor.l_m"] == ["*0.95", "*-1"] * 4
+    assert [x for x in t["f_ave_hz"] if not math.isnan(x)] == [
+        row.metrics["f_ave_hz"] for row in r.rows if not row.error
+    ]
+    assert sorted(p.name for p in (tmp_path / "f").iterdir()) == [
+        "sweep_torque_controller_lambda_psi.png",
+        "sweep_torque_controller_motor_l_m.png",
+    ]
+
+
+@pytest.mark.core
+def test_a_key_the_scenario_lacks_fails_before_anything_runs(tmp_path):
+    with pytest.raises(ConfigError, match="has no group 'motr'"):
+        sweep("im_short", sets=["torque_controller.motr.l_m=*1"], out=tmp_path / "t")
+    with pytest.raises(ConfigError, match="not a strategy of mptc_im; valid: mptc, mptc_db"):
+        sweep("im_short", strategies=["dtc"])
+    assert not (tmp_path / "t").exists()
+
+
+@pytest.mark.core
+def test_ctrl_c_keeps_the_finished_rows_and_leaves_no_worker(tmp_path):
+    """Ctrl-C (a KeyboardInterrupt in the sweep's loop, here right after the third row) stops
+    the workers; the rows finished so far are kept, each a complete run."""
+    seen = []
+
+    def progress(done, total):
+        seen.append(done)
+        if done == 3:
+            raise KeyboardInterrupt
+
+    cases = grid(["mptc", "db_mptc"], [parse_set("torque_controller.lambda_psi=10,20,30,40,50,60")])
+    before = set(descendants(os.getpid()))
+    r = run_cases("im_short", cases, duration=0.05, jobs=2, progress=progress)
+    assert r.interrupted and 3 <= len(r.rows) < 12 and seen[-1] == 3
+    assert all(row.metrics and row.metrics["steps"] > 0 and not row.error for row in r.rows)
+    time.sleep(0.5)
+    left = set(descendants(os.getpid())) - before
+    # no pool worker left behind (the forkserver the pool forks them from and multiprocessing's
+    # resource tracker stay, as they do for the life of the process that started them)
+    helpers = (b"multiprocessing.forkserver", b"multiprocessing.resource_tracker")
+    for pid in left:
+        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+        assert any(h in cmdline for h in helpers), cmdline
+
+
+@pytest.mark.process
+def test_the_same_grid_on_a_dask_cluster_gives_the_same_table(tmp_path):
+    """A scheduler and two workers (one process, one thread each) on localhost, as a user starts
+    them with the `dask` command; the grid run there equals the local one row for row."""
+    pytest.importorskip("distributed")
+    with dask_cluster(tmp_path) as address:
+        remote = sweep("im_short", scheduler=address, **GRID)
+    local = sweep("im_short", **GRID)
+    assert remote.engine == f"dask ({address}, 2 workers)" and local.engine.startswith("local")
+    assert len(remote.rows) == 18 and not any(row.error for row in remote.rows)
+    same_rows(remote.rows, local.rows)
+    assert np.isfinite([row.metrics["t_rmse"] for row in remote.rows]).all()
+
+
+@pytest.mark.core
+def test_ctrl_c_does_not_wait_for_the_runs_in_flight():
+    """Stopped while long runs are in flight, the sweep ends them rather than waiting for them
+    (each takes ten seconds or so here; the sweep returns within three)."""
+    stopped = []
+
+    def progress(done, total):
+        stopped.append(time.perf_counter())
+        raise KeyboardInterrupt
+
+    # the first case is short: its row comes while the others run
+    cases = [Case("db_mptc", duration=0.01)] + [
+        Case("db_mptc", {"torque_controller.lambda_psi": v}, duration=12.0) for v in (10, 20, 30)
+    ]
+    r = run_cases("im_short", cases, jobs=2, progress=progress)
+    took = time.perf_counter() - stopped[0]
+    assert r.interrupted and len(r.rows) == 1
+    assert took < 3.0, f"the sweep waited {took:.1f} s for the runs in flight"
