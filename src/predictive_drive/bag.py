@@ -213,6 +213,11 @@ class BagWriter:
             self.write(key, t_ns, data)
 
     @property
+    def last_ns(self) -> int:
+        """The latest log time written so far (0 before the first message)."""
+        return self._last
+
+    @property
     def held(self) -> int:
         """Messages held for :meth:`release`."""
         return len(self._held)

@@ -115,7 +115,7 @@ class LiveView:
     def offer(self, key: str, t_ns: int, data: bytes) -> None:
         """A message the recorder writes: forwarded if it is a tool topic or, for a per-step
         topic, a step on the live period's grid."""
-        if key in RECORD_TOPICS and (t_ns // self._ts_ns) % self._every:
+        if key in RECORD_TOPICS and round(t_ns / self._ts_ns) % self._every:
             return
         channel = self._channels.get(key)
         if channel is None:

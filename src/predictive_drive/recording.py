@@ -9,7 +9,9 @@ engines record the same bytes.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
+import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -116,8 +118,7 @@ def diagnostics_message(
 ) -> tuple[int, bytes]:
     """The /diagnostics message of a snapshot: counts as integers, figures as exact floats,
     the strategy by name."""
-    s = int(snap.get("strategy", -1))
-    name = strategy_names[s] if 0 <= s < len(strategy_names) else ""
+    name = strategy_name(strategy_names, snap["strategy"]) if "strategy" in snap else ""
     values = [
         (key, str(int(v)) if key in _COUNTS else fmt(v))
         for key, v in snap.items()
@@ -136,12 +137,6 @@ class StrategySpan:
     first: int
     last: int
 
-    def describe(self, ts: float) -> str:
-        return (
-            f"{self.strategy} steps {self.first}-{self.last} "
-            f"({self.first * ts:.6g}-{(self.last + 1) * ts:.6g} s)"
-        )
-
 
 def spans_to_json(spans: list[StrategySpan]) -> str:
     return json.dumps([dataclasses.asdict(s) for s in spans])
@@ -151,22 +146,15 @@ def spans_from_json(text: str) -> list[StrategySpan]:
     return [StrategySpan(**d) for d in json.loads(text)]
 
 
-def extend_spans(spans: list[StrategySpan], k: int, strategy: str) -> bool:
-    """Add step ``k`` under ``strategy`` to ``spans``; True when it opens a new span."""
-    if spans and spans[-1].strategy == strategy and spans[-1].last == k - 1:
-        spans[-1] = StrategySpan(strategy, spans[-1].first, k)
-        return False
-    spans.append(StrategySpan(strategy, k, k))
-    return True
-
-
 def strategy_spans(
     strategy: Sequence[float], names: tuple[str, ...], k0: int = 0
 ) -> list[StrategySpan]:
     """The spans of a run's per-step strategy index (the command's ``strategy`` field)."""
-    spans: list[StrategySpan] = []
-    for k, s in enumerate(strategy, start=k0):
-        extend_spans(spans, k, strategy_name(names, s))
+    spans, k = [], k0
+    for index, steps in itertools.groupby(strategy):
+        n = sum(1 for _ in steps)
+        spans.append(StrategySpan(strategy_name(names, index), k, k + n - 1))
+        k += n
     return spans
 
 
@@ -174,9 +162,9 @@ def strategy_name(names: tuple[str, ...], index: float) -> str:
     return names[int(index)] if 0 <= index < len(names) else "?"
 
 
-#: the per-step records and how often each comes (in steps); the node path adds the plant's tool
-#: topics, which arrive on topics of their own
-_STREAMS = ("state", "reference", "command")
+#: the topics a node's recorder receives each in order but not in order with one another: the
+#: per-step records and the plant's tool topics
+_STREAMS = ("state", "reference", "command", *TOOL_TOPICS)
 
 
 class RunRecorder:
@@ -185,6 +173,7 @@ class RunRecorder:
     The graph delivers each topic in order but gives no order across topics (command k arrives
     after state k+1): every message is held until each topic the recorder waits on has passed
     its time, so the file reads in log-time order (what rosbag2's writer and MCAP readers expect).
+    The in-process engine hands its records over in time order, so they are written at once.
     ``publish(topic_key, data)`` (optional) also sends what it produces (/diagnostics,
     /drive/metrics: the node's publishers); the in-process engine records only. ``steps``: the
     run's planned steps, for the progress in /diagnostics and the final outcome.
@@ -216,12 +205,15 @@ class RunRecorder:
         self._publish = publish
         self._live = live
         self.last_t = 0.0
-        #: the last log time seen on each topic the recorder waits on (each comes in order)
-        self._seen = dict.fromkeys(_STREAMS if record_tools else (*_STREAMS, *TOOL_TOPICS), -1)
+        #: the last log time seen on each topic the recorder waits on (each comes in order);
+        #: none in-process, whose records come in time order
+        self._seen = {} if record_tools else dict.fromkeys(_STREAMS, -1)
         self._released = -1
         self._warned = ""
         self._finished = False
-        self.spans: list[StrategySpan] = []
+        self._spans: list[StrategySpan] = []  #: the last one's end is ``_through``
+        self._index = math.nan  #: the strategy index of the last span
+        self._through = -1
 
     def record(self, record: str, row: tuple[float, ...]) -> None:
         """In-process path: encode, write, and the plant's tool messages with each state."""
@@ -251,10 +243,17 @@ class RunRecorder:
     def record_event(self, data: bytes) -> None:
         """An accepted parameter change (rcl_interfaces/ParameterEvent), logged at the time it
         arrives on the simulated clock (the last step seen), as rosbag2 logs receive time."""
-        self._hold("parameter_events", max(stamp_ns(self.last_t), self._released), data)
+        self._hold("parameter_events", max(stamp_ns(self.last_t), self._floor()), data)
+
+    def _floor(self) -> int:
+        """The earliest log time a message made now may have: what is written or released."""
+        return max(self._released, self.writer.last_ns)
 
     def _hold(self, key: str, ns: int, data: bytes) -> None:
-        self.writer.hold(key, ns, data)
+        if self._seen:
+            self.writer.hold(key, ns, data)
+        else:
+            self.writer.write(key, ns, data)
         if self._live is not None:
             self._live(key, ns, data)
 
@@ -267,6 +266,8 @@ class RunRecorder:
         self._advance(record, ns)
 
     def _advance(self, topic: str, ns: int) -> None:
+        if not self._seen:
+            return
         self._seen[topic] = ns
         through = min(self._seen.values())
         if through > self._released:
@@ -274,12 +275,29 @@ class RunRecorder:
             self.writer.release(through)
 
     def _span(self, k: int, index: float) -> None:
+        """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process
+        with the parameter event the controller node would publish)."""
+        if index == self._index and k == self._through + 1:
+            self._through = k
+            return
+        self._seal()
+        self._index, self._through = index, k
         name = strategy_name(self.strategy_names, index)
-        if extend_spans(self.spans, k, name) and k > 0 and self._events:
-            # what the controller node publishes when its strategy parameter is set
+        self._spans.append(StrategySpan(name, k, k))
+        if k > 0 and self._events:
             t = k * self.ts
             data = encode_parameter_event(t, node_name("torque_controller"), [("strategy", name)])
             self._hold("parameter_events", stamp_ns(t), data)
+
+    def _seal(self) -> None:
+        if self._spans and self._spans[-1].last != self._through:
+            self._spans[-1] = dataclasses.replace(self._spans[-1], last=self._through)
+
+    @property
+    def spans(self) -> list[StrategySpan]:
+        """The strategies in force so far and their steps."""
+        self._seal()
+        return list(self._spans)
 
     def finish(self, error: str = "") -> None:
         """The last, partial diagnostics period, then the run's outcome: OK (or WARN, naming
@@ -304,7 +322,7 @@ class RunRecorder:
         else:
             level, message = OK, f"complete: {done} steps{figures}"
         ns, data = diagnostics_message(total, level, message, self.strategy_names)
-        self._hold("diagnostics", max(ns, self._released), data)
+        self._hold("diagnostics", max(ns, self._floor()), data)
         if self._publish is not None:
             self._publish("diagnostics", data)
         self.writer.custom_data["strategies"] = spans_to_json(self.spans)
@@ -321,6 +339,7 @@ class RunRecorder:
         metrics = CODECS["metrics"].encode(
             tuple(float(level) if f == "level" else snap[f] for f in TOPICS["metrics"].fields)
         )
+        ns = max(ns, self._floor())  # the last, partial period comes after the final state
         self._hold("diagnostics", ns, data)
         self._hold("metrics", ns, metrics)
         if self._publish is not None:
@@ -331,5 +350,5 @@ class RunRecorder:
         """Record (and return) an ERROR diagnostics status, e.g. when a peer went silent."""
         t = self.last_t
         data = encode_diagnostics(t, [(ERROR, DIAGNOSTICS_NAME, message, [])])
-        self._hold("diagnostics", max(stamp_ns(t), self._released), data)
+        self._hold("diagnostics", max(stamp_ns(t), self._floor()), data)
         return data

@@ -326,9 +326,7 @@ def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
     return header, out
 
 
-def write_table(rows: Sequence[Row], directory: str | Path, name: str = "sweep") -> list[Path]:
-    """``<name>.csv`` and ``<name>.parquet`` in ``directory``; written whole or not at all
-    (each to a temporary file, then renamed)."""
+def _pyarrow() -> tuple[Any, Any]:
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -336,6 +334,13 @@ def write_table(rows: Sequence[Row], directory: str | Path, name: str = "sweep")
         raise ConfigError(
             "sweep --out needs pyarrow for the Parquet table: pip install 'predictive_drive[sweep]'"
         ) from None
+    return pa, pq
+
+
+def write_table(rows: Sequence[Row], directory: str | Path, name: str = "sweep") -> list[Path]:
+    """``<name>.csv`` and ``<name>.parquet`` in ``directory``; written whole or not at all
+    (each to a temporary file, then renamed)."""
+    pa, pq = _pyarrow()
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     header, body = table(rows)
@@ -391,10 +396,7 @@ def sweep(
             bag = Path(out) / "bags" / f"{i:03d}_{c.strategy}{'_' + tag if tag else ''}"
             cases[i] = Case(c.strategy, c.settings, str(check_new_bag(bag).resolve()))
     if out is not None:
-        try:  # the table can be written: checked before the runs, not after
-            import pyarrow  # noqa: F401
-        except ImportError:
-            write_table([], out)
+        _pyarrow()  # the table can be written: checked before the runs, not after
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration}")
     result = run_cases(

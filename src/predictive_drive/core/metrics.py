@@ -194,6 +194,14 @@ class _Sums:
         self.speed_err2 += speed_err * speed_err
         self.transitions += tr
 
+    def merge(self, other: _Sums) -> None:
+        self.n += other.n
+        self.t_err2 += other.t_err2
+        self.psi_err2 += other.psi_err2
+        self.est_err2 += other.est_err2
+        self.speed_err2 += other.speed_err2
+        self.transitions += other.transitions
+
     def figures(self, ts: float) -> dict[str, float]:
         n = self.n
         return {
@@ -248,7 +256,6 @@ class LiveMetrics:
             s[S.transitions],
         )
         self._period.add(*errors)
-        self._run.add(*errors)
         self.steps += 1
         self._last_k = k
         self._last_t = s[S.t]
@@ -271,12 +278,16 @@ class LiveMetrics:
         if self._period.n == 0:
             return None
         snap = self._snapshot(self._period)
+        self._run.merge(self._period)
         self._period = _Sums()
         return snap
 
     def total(self) -> dict[str, float] | None:
         """Snapshot of every step so far (None before the first)."""
-        return self._snapshot(self._run) if self._run.n else None
+        run = _Sums()
+        run.merge(self._run)
+        run.merge(self._period)
+        return self._snapshot(run) if run.n else None
 
     def level(self, snap: dict[str, float]) -> tuple[int, str]:
         """(diagnostic level, what is wrong or "") for a snapshot: 0 OK or 1 WARN."""
