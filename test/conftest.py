@@ -11,6 +11,7 @@ import pytest
 os.environ.setdefault("ROS_DOMAIN_ID", str(random.Random(os.getpid()).randint(100, 199)))
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
+from installs import colcon_install, wheel_install  # noqa: E402
 from predictive_drive.config import load_scenario  # noqa: E402
 from predictive_drive.core.runner import run_inprocess  # noqa: E402
 
@@ -24,3 +25,15 @@ def im_short():
 def short_traces(im_short):
     """A 0.4 s closed-loop run per IM strategy (shared: each takes about a second)."""
     return {s: run_inprocess(im_short.with_strategy(s)) for s in ("mptc", "mptc_db", "db_mptc")}
+
+
+@pytest.fixture(scope="session")
+def colcon_built(tmp_path_factory):
+    """The package as `colcon build` installs it (built once per test session)."""
+    return colcon_install(tmp_path_factory.mktemp("colcon"))
+
+
+@pytest.fixture(scope="session")
+def wheel_installed(tmp_path_factory):
+    """The package's wheel installed into a fresh venv (once per test session)."""
+    return wheel_install(tmp_path_factory.mktemp("wheel"))

@@ -8,7 +8,6 @@ from __future__ import annotations
 import ast
 import os
 import re
-import shutil
 import subprocess
 import sys
 import time
@@ -24,24 +23,9 @@ ROOT = Path(__file__).resolve().parents[1]
 NODES = ("metrics_logger", "torque_controller", "speed_pi", "plant")
 
 
-@pytest.fixture(scope="module")
-def install(tmp_path_factory):
-    ws = tmp_path_factory.mktemp("ws")
-    pkg = ws / "src" / "predictive_drive"
-    pkg.mkdir(parents=True)
-    for name in ("package.xml", "setup.py", "setup.cfg", "README.md"):
-        shutil.copy(ROOT / name, pkg / name)
-    for name in ("resource", "src", "config", "launch", "layouts"):
-        shutil.copytree(ROOT / name, pkg / name, ignore=shutil.ignore_patterns("__pycache__"))
-    colcon = Path(sys.executable).with_name("colcon")
-    subprocess.run(
-        [str(colcon), "build", "--base-paths", "src"],
-        cwd=ws,
-        check=True,
-        timeout=300,
-        capture_output=True,
-    )
-    return ws / "install" / "predictive_drive"
+@pytest.fixture
+def install(colcon_built):
+    return colcon_built.prefix
 
 
 def install_env(install: Path, domain: int) -> dict[str, str]:

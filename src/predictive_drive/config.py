@@ -123,6 +123,8 @@ def _ament_share() -> Path | None:
         return Path(get_package_share_directory("predictive_drive"))
     except LookupError:  # PackageNotFoundError is a KeyError
         return None
+    except OSError:  # no AMENT_PREFIX_PATH at all: a venv of the PyPI wheels, which set none
+        return None
 
 
 def scenario_names() -> list[str]:

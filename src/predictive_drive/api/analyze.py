@@ -40,8 +40,8 @@ def analyze(
             )
     if not (math.isfinite(threshold) and threshold >= 0):
         raise ConfigError(f"--threshold must be a torque >= 0 N·m, got {threshold}")
-    start, end = metrics_window(sc)
-    u = utilization(trace, threshold=threshold, t_start=start, t_end=min(end, trace.steps * sc.ts))
+    start, end = metrics_window(sc, trace.steps * trace.ts)
+    u = utilization(trace, threshold=threshold, t_start=start, t_end=end)
     derived = class_document(derive_candidates(u.six), derive_candidates(u.twelve))
     used = class_document(TABLES.six, TABLES.twelve)
     differences = [

@@ -14,9 +14,10 @@ from ..config import load_scenario, scenario_with
 from ..core.control import strategy_names
 from ..core.metrics import compute_metrics
 from ..core.runner import run_inprocess
+from .report import evaluate
 from .run import run, run_inprocess_to_bag
 
-__all__ = ["bench", "graph_rate"]
+__all__ = ["GRAPH_RUNS", "QUICK_RUNS", "bench", "graph_rate"]
 
 
 def graph_rate(
@@ -66,8 +67,26 @@ def graph_rate(
     }
 
 
-def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str, Any]:
-    """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests)."""
+#: the graph runs of a full bench: (engine, affinity, sched, speed loop, the figure's key)
+GRAPH_RUNS = (
+    ("ros", "paired", "batch", "one_step", "ros_steps_per_s"),  # the defaults
+    ("ros", "paired", "batch", "immediate", "ros_immediate_steps_per_s"),
+    ("ros", "paired", "other", "one_step", "ros_sched_other_steps_per_s"),
+    ("ros", "none", "other", "one_step", "ros_unpinned_steps_per_s"),  # all to the kernel
+    ("composed", "none", "other", "one_step", "composed_steps_per_s"),  # one process
+)
+#: ``--quick``: the defaults of each engine, short runs (a smoke test of the figures, not a
+#: measurement)
+QUICK_RUNS = (GRAPH_RUNS[0], GRAPH_RUNS[-1])
+
+
+def bench(
+    *, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool = False
+) -> dict[str, Any]:
+    """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests).
+    ``quick``: one repeat of 2,000 steps and 0.3 s graph runs of the default engines."""
+    if quick:
+        repeats, steps = 1, 2000
     sc = load_scenario("im_paper", strategy="db_mptc")
     rates = []
     for _ in range(repeats):
@@ -88,17 +107,22 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True) -> dict[str
     }
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        n = run_inprocess_to_bag(sc.with_duration(steps * sc.ts), Path(tmp) / "bench")
+        bag = Path(tmp) / "bench"
+        n = run_inprocess_to_bag(sc.with_duration(steps * sc.ts), bag)
         out["inprocess_recorded_steps_per_s"] = n / (time.perf_counter() - t0)
+        # what `report` does: read the recording back and evaluate it
+        t0 = time.perf_counter()
+        evaluate(bag)
+        out["report_steps_per_s"] = n / (time.perf_counter() - t0)
     if ros:
-        for engine, affinity, sched, loop, key in (
-            ("ros", "paired", "batch", "one_step", "ros_steps_per_s"),  # the defaults
-            ("ros", "paired", "batch", "immediate", "ros_immediate_steps_per_s"),
-            ("ros", "paired", "other", "one_step", "ros_sched_other_steps_per_s"),
-            ("ros", "none", "other", "one_step", "ros_unpinned_steps_per_s"),  # all to the kernel
-            ("composed", "none", "other", "one_step", "composed_steps_per_s"),  # one process
-        ):
-            g = graph_rate(engine, affinity=affinity, sched=sched, speed_loop=loop)
+        for engine, affinity, sched, loop, key in QUICK_RUNS if quick else GRAPH_RUNS:
+            g = graph_rate(
+                engine,
+                affinity=affinity,
+                sched=sched,
+                speed_loop=loop,
+                duration=0.3 if quick else 2.0,
+            )
             out[key] = g["steps_per_s"]
             out[key.replace("steps_per_s", "startup_s")] = g["startup_s"]
     return out

@@ -41,18 +41,22 @@ class Evaluation:
         return self.trace.steps
 
 
-def metrics_window(sc: Scenario) -> tuple[float, float]:
-    """The scenario's metrics window, clipped to the run (a run shorter than the window's start is
-    evaluated whole)."""
+def metrics_window(sc: Scenario, recorded_s: float | None = None) -> tuple[float, float]:
+    """The scenario's metrics window, clipped to the run and to the ``recorded_s`` seconds a
+    recording holds: a run (or a recording cut short) that ends before the window's start is
+    evaluated whole."""
     lo = sc.logger
     end = min(lo.window_end, sc.run.duration)
+    if recorded_s is not None:
+        end = min(end, recorded_s)
     start = lo.window_start if lo.window_start < end else 0.0
     return start, end
 
 
 def metrics_of(trace: Trace, sc: Scenario) -> Metrics:
-    """A run's metrics over its scenario's window (and THD window, when the run reaches it)."""
-    start, end = metrics_window(sc)
+    """A run's metrics over its scenario's window, clipped to what the trace holds (and the THD
+    window, when the trace reaches its end)."""
+    start, end = metrics_window(sc, trace.steps * trace.ts)
     thd = sc.logger.thd_window
     if thd and thd[1] > trace.steps * trace.ts:
         thd = ()  # a run (or a cut recording) that ends before the THD window: no THD
