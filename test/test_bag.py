@@ -277,7 +277,7 @@ def test_the_outcome_of_an_interrupted_run_is_an_error(tmp_path, monkeypatch):
 def test_a_record_of_another_layout_is_read_by_field_name():
     """A command recorded before the field-oriented fields existed: every field it has lands in
     its place, the ones it lacks are NaN (old recordings stay readable)."""
-    from predictive_drive.interface import CODECS, MultiArrayCodec
+    from predictive_drive.codec import CODECS, MultiArrayCodec
 
     old = tuple(f for f in TOPICS["command"].fields if f not in ("current_angle", "mtpa_gradient"))
     values = tuple(float(i) for i in range(len(old)))

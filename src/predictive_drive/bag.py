@@ -29,19 +29,12 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from . import __version__
+from .codec import CODECS, ParameterEvent, decode_parameter_event
 from .core.signals import STATE_INDEX
 from .core.trace import RECORDS, Trace, TraceBuilder
 from .errors import BagError
-from .interface import (
-    BAG_TOPICS,
-    CODECS,
-    RECORD_TOPICS,
-    TOPICS,
-    ParameterEvent,
-    decode_parameter_event,
-    message_definition,
-    type_hash,
-)
+from .interface import BAG_TOPICS, RECORD_TOPICS, TOPICS
+from .schemas import message_definition, type_hash
 
 __all__ = [
     "LOGS_DIR",

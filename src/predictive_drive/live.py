@@ -17,7 +17,8 @@ from collections.abc import Callable
 from typing import Any
 
 from .errors import ConfigError
-from .interface import BAG_TOPICS, RECORD_TOPICS, message_definition, node_name
+from .interface import BAG_TOPICS, RECORD_TOPICS, node_name
+from .schemas import message_definition
 
 __all__ = ["DEFAULT_PORT", "LIVE_PERIOD", "STRATEGY_PARAMETER", "LiveView", "check_port"]
 

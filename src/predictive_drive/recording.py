@@ -20,31 +20,27 @@ from pathlib import Path
 from typing import Any
 
 from .bag import BagWriter
+from .codec import (
+    CODECS,
+    ERROR,
+    LEVEL_NAMES,
+    OK,
+    WARN,
+    diagnostics_value,
+    encode_clock,
+    encode_diagnostics,
+    encode_joint_state,
+    encode_parameter_event,
+    stamp_ns,
+    tool_stamp_ns,
+)
 from .config import load_scenario_text
 from .core.control import strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
 from .core.signals import COMMAND_INDEX, STATE_INDEX
 from .core.timebase import every_steps
-from .interface import (
-    CLOCK_PERIOD,
-    CODECS,
-    ERROR,
-    LEVEL_NAMES,
-    OK,
-    RECORD_TOPICS,
-    TOOL_TOPICS,
-    TOPICS,
-    WARN,
-    encode_clock,
-    encode_diagnostics,
-    encode_joint_state,
-    encode_parameter_event,
-    fmt,
-    node_name,
-    stamp_ns,
-    tool_stamp_ns,
-)
+from .interface import CLOCK_PERIOD, RECORD_TOPICS, TOOL_TOPICS, TOPICS, node_name
 
 __all__ = [
     "DIAGNOSTICS_NAME",
@@ -120,7 +116,7 @@ def diagnostics_message(
     the strategy by name."""
     name = strategy_name(strategy_names, snap["strategy"]) if "strategy" in snap else ""
     values = [
-        (key, str(int(v)) if key in _COUNTS else fmt(v))
+        (key, str(int(v)) if key in _COUNTS else diagnostics_value(v))
         for key, v in snap.items()
         if key not in ("t", "strategy")
     ]

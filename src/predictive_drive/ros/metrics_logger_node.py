@@ -12,18 +12,12 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import BagWriter
+from ..codec import CODECS, decode_parameter_event
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice, quantity
 from ..errors import BagError
-from ..interface import (
-    CODECS,
-    NODES,
-    RECORDED_EVERY,
-    TOPICS,
-    decode_parameter_event,
-    node_name,
-)
+from ..interface import NODES, RECORDED_EVERY, TOPICS, node_name
 from ..live import LiveView
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import WatchedNode, run_main

@@ -12,7 +12,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from ..errors import ConfigError, GraphError
-from ..interface import node_name
+from ..interface import PARAM_NODE, node_name
 from .transport import executor
 
 __all__ = ["domain_id", "param"]
@@ -49,7 +49,7 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
     domain = domain_id()
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain)
-    me = rclpy.create_node("param_cli", context=ctx)
+    me = rclpy.create_node(PARAM_NODE, context=ctx)
     ex = executor(ctx)
     try:
         ex.add_node(me)

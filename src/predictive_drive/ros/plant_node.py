@@ -19,18 +19,13 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 
+from ..codec import CODECS
 from ..core.runner import build_plant
 from ..core.signals import Command, State
-from ..interface import (
-    CODECS,
-    LAUNCHER_NODE,
-    NAMESPACE,
-    RECORDING_WINDOW,
-    TOPICS,
-    node_name,
-)
+from ..interface import LAUNCHER_NODE, NAMESPACE, RECORDING_WINDOW, TOPICS, node_name
 from ..recording import tool_every, tool_messages
 from .node_base import WatchedNode, run_main
+from .transport import qos
 
 __all__ = ["PlantNode", "main"]
 
@@ -88,8 +83,9 @@ class PlantNode(WatchedNode):
             from rcl_interfaces.msg import ParameterEvent
 
             # rclpy's own parameter events, over DDS in every engine
+            events = TOPICS["parameter_events"]
             self.sub_events = self.create_subscription(
-                ParameterEvent, "/parameter_events", self.on_parameter_event, 100
+                ParameterEvent, events.name, self.on_parameter_event, qos(events.qos)
             )
         self.k_started = False
 

@@ -21,12 +21,13 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParam
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 
 from ..bag import RecordedTopic, iter_messages, recorded_topics
+from ..codec import encode_clock
 from ..errors import ConfigError
-from ..interface import NAMESPACE, encode_clock
-from .transport import msg_class
+from ..interface import NAMESPACE, PLAYER_NODE, TOPICS, Qos
+from .transport import msg_class, qos
 
 __all__ = ["PlayOptions", "PlayResult", "PlayerNode", "play"]
 
@@ -82,25 +83,14 @@ class PlayResult:
 
 def qos_of(recorded: list[dict[str, Any]]) -> QoSProfile:
     """rclpy QoS from a rosbag2 offered QoS profile (the first one offered)."""
-    q = recorded[0] if recorded else {}
-    keep_all = q.get("history") == "keep_all"
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
-        depth=max(int(q.get("depth", 10) or 10), 1),
-        reliability=ReliabilityPolicy.BEST_EFFORT
-        if q.get("reliability") == "best_effort"
-        else ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL
-        if q.get("durability") == "transient_local"
-        else DurabilityPolicy.VOLATILE,
-    )
+    return qos(Qos.from_rosbag2(recorded[0] if recorded else {}))
 
 
 class PlayerNode(Node):
     """``/drive/player``: one publisher per played topic; ``rate`` and ``paused`` settable."""
 
     def __init__(self, topics: dict[str, RecordedTopic], options: PlayOptions, **kw: Any) -> None:
-        super().__init__("player", namespace=NAMESPACE, **kw)
+        super().__init__(PLAYER_NODE, namespace=NAMESPACE, **kw)
         self.options = options
         rate_desc = ParameterDescriptor(
             description="playback rate: recorded seconds per wall second; > 0",
@@ -122,9 +112,8 @@ class PlayerNode(Node):
         }
         self.clock_pub = None
         if options.clock_hz is not None:
-            self.clock_pub = self.create_publisher(
-                msg_class("rosgraph_msgs/msg/Clock"), "/clock", 10
-            )
+            clock = TOPICS["clock"]
+            self.clock_pub = self.create_publisher(msg_class(clock.type), clock.name, 10)
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self.changed = False
@@ -185,7 +174,8 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
         )
     play_topics = [t for t in chosen if t not in options.exclude_topics]
     if options.clock_hz is not None:
-        play_topics = [t for t in play_topics if t != "/clock"]  # replaced by the player's own
+        # replaced by the player's own
+        play_topics = [t for t in play_topics if t != TOPICS["clock"].name]
     node = PlayerNode({t: available[t] for t in play_topics}, options, context=context)
     ex = executor(context)
     ex.add_node(node)

@@ -9,9 +9,10 @@ from typing import Any
 
 from rclpy.duration import Duration
 
+from ..codec import CODECS
 from ..core.control.speed_pi import SpeedPI
 from ..core.signals import State
-from ..interface import CODECS, TOPICS, node_name
+from ..interface import TOPICS, node_name
 from .node_base import WatchedNode, run_main
 
 __all__ = ["SpeedPINode", "main"]

@@ -24,11 +24,12 @@ from typing import Any
 import yaml
 
 from ..bag import LOGS_DIR, BagWriter, read_bag
+from ..codec import CODECS, stamp_ns
 from ..core.control import strategy_names
 from ..core.signals import COMMAND_INDEX, PULSES
 from ..core.trace import Trace
 from ..errors import GraphError
-from ..interface import CODECS, TOPICS, node_name, stamp_ns
+from ..interface import NAMESPACE, STEPPER_NODE, TOPICS, node_name
 from ..recording import bag_info, scenario_of, tool_every, tool_messages
 from .launcher import isolated_domain, stop_processes
 from .placement import ros_env
@@ -94,7 +95,7 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
     with isolated_domain() as domain:
         ctx = Context()
         rclpy.init(context=ctx, domain_id=domain)
-        me = rclpy.create_node("stepper", namespace="/drive", context=ctx)
+        me = rclpy.create_node(STEPPER_NODE, namespace=NAMESPACE, context=ctx)
         ex = executor(ctx)
         ex.add_node(me)
         got: list[bytes] = []

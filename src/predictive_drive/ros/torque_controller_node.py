@@ -12,12 +12,13 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.parameter import Parameter
 
+from ..codec import CODECS
 from ..config import FAMILY_KEY, family_of, section_class
 from ..core.control import CONTROLLERS, make_controller, strategy_names
 from ..core.fields import Quantity, check_fields, quantity
 from ..core.scenario import RunParams
 from ..core.signals import Reference, State
-from ..interface import CODECS, TOPICS, node_name
+from ..interface import TOPICS, node_name
 from .node_base import WatchedNode, describe, run_main
 
 __all__ = ["TorqueControllerNode", "main"]

@@ -1,0 +1,362 @@
+"""Every message the package sends or records, encoded to and decoded from CDR bytes by hand.
+
+No rclpy here: the nodes publish and subscribe raw (serialized) messages, and the in-process
+engine and the MCAP recorder use the same encoders, so every engine produces the *same bytes*.
+One writer (:class:`CdrWriter`) and one reader (:class:`CdrReader`) of XCDR1 little endian, the
+encoding Fast DDS and rosbag2 use.
+
+Per-step topics are ``std_msgs/Float64MultiArray`` with one labelled dimension: ``layout.dim[0].
+label`` is the comma-separated field list of :mod:`predictive_drive.core.signals` (e.g.
+``k,t,i_alpha,...``), ``size = stride = len(fields)``, ``data_offset = 0``; ``data`` holds the
+values in that order (:class:`MultiArrayCodec`: a constant prefix and one ``struct.pack``).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TypeVar
+
+from .errors import BagError
+from .interface import RECORD_TOPICS, TOPICS
+
+__all__ = [
+    "CODECS",
+    "ERROR",
+    "LEVEL_NAMES",
+    "OK",
+    "WARN",
+    "CdrReader",
+    "CdrWriter",
+    "MultiArrayCodec",
+    "ParameterEvent",
+    "decode_multiarray",
+    "decode_parameter_event",
+    "diagnostics_value",
+    "encode_clock",
+    "encode_diagnostics",
+    "encode_joint_state",
+    "encode_parameter_event",
+    "stamp",
+    "stamp_ns",
+    "tool_stamp_ns",
+]
+
+#: the encapsulation header: XCDR1, little endian
+HEADER = b"\x00\x01\x00\x00"
+T = TypeVar("T")
+
+
+class CdrWriter:
+    """CDR writer; alignment is relative to the byte after the encapsulation header."""
+
+    __slots__ = ("buf",)
+
+    def __init__(self) -> None:
+        self.buf = bytearray(HEADER)
+
+    def align(self, n: int) -> None:
+        pad = (-(len(self.buf) - 4)) % n
+        if pad:
+            self.buf += b"\x00" * pad
+
+    def u8(self, v: int) -> None:
+        self.buf += struct.pack("<B", v)
+
+    def i32(self, v: int) -> None:
+        self.align(4)
+        self.buf += struct.pack("<i", v)
+
+    def u32(self, v: int) -> None:
+        self.align(4)
+        self.buf += struct.pack("<I", v)
+
+    def i64(self, v: int) -> None:
+        self.align(8)
+        self.buf += struct.pack("<q", v)
+
+    def f64(self, v: float) -> None:
+        self.align(8)
+        self.buf += struct.pack("<d", v)
+
+    def string(self, s: str) -> None:
+        b = s.encode()
+        self.u32(len(b) + 1)
+        self.buf += b + b"\x00"
+
+    def f64_seq(self, values: tuple[float, ...] | list[float]) -> None:
+        self.u32(len(values))
+        if values:
+            self.align(8)
+            self.buf += struct.pack(f"<{len(values)}d", *values)
+
+    def time(self, t: float) -> None:
+        """builtin_interfaces/Time of ``t`` s."""
+        sec, nsec = stamp(t)
+        self.i32(sec)
+        self.u32(nsec)
+
+    def bytes(self) -> bytes:
+        return bytes(self.buf)
+
+
+class CdrReader:
+    """CDR reader of one message; ``struct.error`` or ``UnicodeDecodeError`` when the bytes end
+    early or are not what is read (the decoders turn them into :class:`BagError`)."""
+
+    __slots__ = ("data", "off")
+
+    def __init__(self, data: bytes | memoryview) -> None:
+        self.data = data
+        self.off = len(HEADER)
+
+    def align(self, n: int) -> None:
+        self.off += (-(self.off - 4)) % n
+
+    def _unpack(self, code: str, size: int) -> int | float:
+        self.align(size)
+        (v,) = struct.unpack_from("<" + code, self.data, self.off)
+        self.off += size
+        return v  # type: ignore[no-any-return]
+
+    def u8(self) -> int:
+        return int(self._unpack("B", 1))
+
+    def i32(self) -> int:
+        return int(self._unpack("i", 4))
+
+    def u32(self) -> int:
+        return int(self._unpack("I", 4))
+
+    def i64(self) -> int:
+        return int(self._unpack("q", 8))
+
+    def f64(self) -> float:
+        return float(self._unpack("d", 8))
+
+    def string(self) -> str:
+        n = self.u32()
+        s = bytes(self.data[self.off : self.off + n - 1]).decode()
+        self.off += n
+        return s
+
+    def f64_array(self, count: int) -> tuple[float, ...]:
+        if not count:
+            return ()
+        self.align(8)
+        values: tuple[float, ...] = struct.unpack_from(f"<{count}d", self.data, self.off)
+        self.off += 8 * count
+        return values
+
+    def seq(self, read: Callable[[], T]) -> tuple[T, ...]:
+        return tuple(read() for _ in range(self.u32()))
+
+    def time_ns(self) -> int:
+        sec = self.i32()
+        return sec * 1_000_000_000 + self.u32()
+
+
+def stamp(t: float) -> tuple[int, int]:
+    """Simulated time in s → (sec, nanosec), rounded to the nearest ns."""
+    ns = round(t * 1e9)
+    return ns // 1_000_000_000, ns % 1_000_000_000
+
+
+def stamp_ns(t: float) -> int:
+    return round(t * 1e9)
+
+
+def tool_stamp_ns(data: bytes) -> int:
+    """The time of a /clock or /drive/joint_states message: its first field (clock /
+    header.stamp), right after the CDR header."""
+    sec, nsec = struct.unpack_from("<iI", data, 4)
+    return int(sec) * 1_000_000_000 + int(nsec)
+
+
+# --- std_msgs/Float64MultiArray ---------------------------------------------------------------
+
+
+class MultiArrayCodec:
+    """Float64MultiArray with a fixed label: the header is built once, each message is one pack."""
+
+    def __init__(self, fields: tuple[str, ...]) -> None:
+        self.fields = fields
+        w = CdrWriter()
+        w.u32(1)  # one dimension
+        w.string(",".join(fields))
+        w.u32(len(fields))  # size
+        w.u32(len(fields))  # stride
+        w.u32(0)  # data_offset
+        w.u32(len(fields))  # data length
+        w.align(8)
+        self.prefix = w.bytes()
+        self._fmt = struct.Struct(f"<{len(fields)}d")
+        self.size = len(self.prefix) + self._fmt.size
+
+    def encode(self, values: tuple[float, ...]) -> bytes:
+        return self.prefix + self._fmt.pack(*values)
+
+    def decode(self, data: bytes) -> tuple[float, ...]:
+        """Values of a message in this layout's field order. A message of exactly this layout
+        takes the fast path; another labelled layout (a recording of another version) is read
+        by field name, NaN for fields it lacks; BagError if it lacks the step or time."""
+        if len(data) == self.size and data.startswith(self.prefix):
+            values: tuple[float, ...] = self._fmt.unpack_from(data, len(self.prefix))
+            return values
+        labels, values = decode_multiarray(data)
+        by_name = dict(zip(labels, values))
+        if len(labels) != len(values) or not {"k", "t"} <= set(by_name):
+            raise BagError(
+                f"Float64MultiArray layout mismatch: expected labels {','.join(self.fields)}, got "
+                f"{','.join(labels)} with {len(values)} values"
+            )
+        return tuple(by_name.get(f, math.nan) for f in self.fields)
+
+
+#: the codec of every labelled record topic, by topic key
+CODECS: dict[str, MultiArrayCodec] = {
+    key: MultiArrayCodec(TOPICS[key].fields) for key in (*RECORD_TOPICS, "recorded", "metrics")
+}
+
+
+def decode_multiarray(data: bytes) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """Any Float64MultiArray → (labels of dim[0] split at commas, data)."""
+    r = CdrReader(data)
+    try:
+        labels: list[str] = []
+        for _ in range(r.u32()):
+            labels.append(r.string())
+            r.u32()  # size
+            r.u32()  # stride
+        r.u32()  # data_offset
+        values = r.f64_array(r.u32())
+    except (struct.error, UnicodeDecodeError) as e:
+        raise BagError(f"not a Float64MultiArray: {e}") from None
+    split = tuple(labels[0].split(",")) if labels else ()
+    return split, values
+
+
+# --- the tool topics ---------------------------------------------------------------------------
+
+
+def encode_clock(t: float) -> bytes:
+    """rosgraph_msgs/Clock at ``t`` s."""
+    w = CdrWriter()
+    w.time(t)
+    return w.bytes()
+
+
+JOINT_NAME = "drive_shaft"
+
+
+def encode_joint_state(t: float, position: float, velocity: float, effort: float) -> bytes:
+    """sensor_msgs/JointState for the shaft: angle (rad), speed (rad/s), electromagnetic torque (N·m)."""
+    w = CdrWriter()
+    w.time(t)
+    w.string("")  # frame_id
+    w.u32(1)
+    w.string(JOINT_NAME)
+    w.f64_seq((position,))
+    w.f64_seq((velocity,))
+    w.f64_seq((effort,))
+    return w.bytes()
+
+
+#: diagnostic_msgs/DiagnosticStatus levels
+OK, WARN, ERROR = 0, 1, 2
+LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR"}
+
+
+def encode_diagnostics(
+    t: float, statuses: list[tuple[int, str, str, list[tuple[str, str]]]]
+) -> bytes:
+    """DiagnosticArray of (level, name, message, [(key, value), ...]); hardware_id = 'predictive_drive'."""
+    w = CdrWriter()
+    w.time(t)
+    w.string("")
+    w.u32(len(statuses))
+    for level, name, message, values in statuses:
+        w.u8(level)
+        w.string(name)
+        w.string(message)
+        w.string("predictive_drive")
+        w.u32(len(values))
+        for key, value in values:
+            w.string(key)
+            w.string(value)
+    return w.bytes()
+
+
+def diagnostics_value(v: float) -> str:
+    """A diagnostics value: repr of the float (round-trips exactly), 'nan' where undefined."""
+    return "nan" if math.isnan(v) else repr(float(v))
+
+
+# --- rcl_interfaces/ParameterEvent --------------------------------------------------------------
+
+#: rcl_interfaces/msg/ParameterType of the scalar values this package sets
+_PARAMETER_TYPES = {bool: 1, int: 2, float: 3, str: 4}
+
+
+def encode_parameter_event(t: float, node: str, changed: list[tuple[str, object]]) -> bytes:
+    """rcl_interfaces/ParameterEvent: ``node``'s parameters ``changed`` at ``t`` (bool, int,
+    float or str values), as rclpy publishes it after an accepted set."""
+    w = CdrWriter()
+    w.time(t)
+    w.string(node)
+    w.u32(0)  # new_parameters
+    w.u32(len(changed))
+    for name, value in changed:
+        kind = _PARAMETER_TYPES[type(value)]
+        w.string(name)
+        w.u8(kind)
+        w.u8(bool(value) if kind == 1 else 0)
+        w.i64(int(value) if kind == 2 else 0)  # type: ignore[call-overload]
+        w.f64(float(value) if kind == 3 else 0.0)  # type: ignore[arg-type]
+        w.string(str(value) if kind == 4 else "")
+        for _ in range(5):  # byte, bool, integer, double and string arrays: empty
+            w.u32(0)
+    w.u32(0)  # deleted_parameters
+    return w.bytes()
+
+
+@dataclass(frozen=True)
+class ParameterEvent:
+    stamp_ns: int
+    node: str
+    new: tuple[tuple[str, object], ...]  #: (name, value) of parameters declared
+    changed: tuple[tuple[str, object], ...]  #: (name, value) of parameters set
+
+
+def _parameter(r: CdrReader) -> tuple[str, object]:
+    """One rcl_interfaces/Parameter: its name and the value of its type (arrays as tuples)."""
+    name = r.string()
+    kind = r.u8()
+    values: list[object] = [
+        bool(r.u8()),
+        r.i64(),
+        r.f64(),
+        r.string(),
+        r.seq(r.u8),
+        r.seq(lambda: bool(r.u8())),
+        r.seq(r.i64),
+        r.seq(r.f64),
+        r.seq(r.string),
+    ]
+    return name, (values[kind - 1] if 1 <= kind <= 9 else None)
+
+
+def decode_parameter_event(data: bytes) -> ParameterEvent:
+    """The node and the new and changed (name, value) pairs of a ParameterEvent (deleted
+    parameters are not read). BagError if the bytes are not one."""
+    r = CdrReader(data)
+    try:
+        stamp_ = r.time_ns()
+        node = r.string()
+        new = r.seq(lambda: _parameter(r))
+        changed = r.seq(lambda: _parameter(r))
+    except (struct.error, UnicodeDecodeError) as e:
+        raise BagError(f"not a ParameterEvent: {e}") from None
+    return ParameterEvent(stamp_, node, new, changed)
