@@ -10,11 +10,12 @@ import yaml
 from mcapcheck import ordering_faults
 from predictive_drive.api.report import report
 from predictive_drive.api.run import run, run_inprocess_to_bag
-from predictive_drive.bag import BagWriter, read_bag
+from predictive_drive.bag import BagWriter
 from predictive_drive.config import load_scenario
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import BagError
 from predictive_drive.interface import BAG_TOPICS, TOPICS
+from predictive_drive.readback import read_bag
 
 pytestmark = pytest.mark.core
 

@@ -65,9 +65,9 @@ def test_the_installed_nodes_run_as_ros2_run_starts_them(install, tmp_path):
     """No other arguments than the scenario file: the logger finds the scenario through the ament
     index (a plain colcon install: nothing of the source tree on the path) and writes its bag
     under the working directory; the recording equals the in-process run bit for bit."""
-    from predictive_drive.bag import read_bag
     from predictive_drive.config import load_scenario
     from predictive_drive.core.runner import run_inprocess
+    from predictive_drive.readback import read_bag
     from predictive_drive.ros.launcher import isolated_domain
 
     params = install / "share" / "predictive_drive" / "config" / "im_short.yaml"

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from predictive_drive.api.run import run_inprocess_to_bag
-from predictive_drive.bag import read_bag
 from predictive_drive.config import config_dir, load_scenario, load_scenario_text
 from predictive_drive.core.control import (
     CONTROLLERS,
@@ -25,6 +24,7 @@ from predictive_drive.core.machines import Machine
 from predictive_drive.core.machines.induction import InductionMotor
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import ConfigError
+from predictive_drive.readback import read_bag
 
 pytestmark = pytest.mark.core
 

@@ -15,9 +15,10 @@ from pathlib import Path
 import pytest
 
 from predictive_drive.api.run import run, run_inprocess_to_bag
-from predictive_drive.bag import LOGS_DIR, read_bag
+from predictive_drive.bag import LOGS_DIR
 from predictive_drive.config import config_dir, load_scenario
 from predictive_drive.errors import BagError, ConfigError
+from predictive_drive.readback import read_bag
 
 pytestmark = pytest.mark.core
 

@@ -17,9 +17,9 @@ import pytest
 from mcapcheck import ordering_faults
 from predictive_drive.api.report import report
 from predictive_drive.api.run import run
-from predictive_drive.bag import read_bag
 from predictive_drive.config import load_scenario
 from predictive_drive.errors import ConfigError
+from predictive_drive.readback import read_bag
 from predictive_drive.ros.placement import (
     FASTDDS_PROFILES,
     FASTDDS_PROFILES_ENV,

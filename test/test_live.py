@@ -14,10 +14,10 @@ import time
 import numpy as np
 import pytest
 
-from predictive_drive.bag import read_bag
 from predictive_drive.codec import CODECS, encode_clock, stamp_ns
 from predictive_drive.errors import ConfigError
 from predictive_drive.interface import TOPICS
+from predictive_drive.readback import read_bag
 
 pytest.importorskip("foxglove")
 from foxglove_client import FoxgloveClient  # noqa: E402

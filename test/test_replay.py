@@ -154,7 +154,7 @@ def test_replay_into_the_strategy_that_made_it_reproduces_every_command(
     tmp_path, scenario, strategy
 ):
     from predictive_drive.api.replay import replay_into
-    from predictive_drive.bag import read_bag
+    from predictive_drive.readback import read_bag
 
     rec = tmp_path / "rec"
     run_inprocess_to_bag(load_scenario(scenario, strategy=strategy, duration=0.03), rec)

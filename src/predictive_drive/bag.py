@@ -1,16 +1,16 @@
-"""Recordings in rosbag2's MCAP layout, written and read without ROS.
+"""rosbag2's MCAP bags, written and read without ROS: the file layer (what a recording *means* is
+:mod:`predictive_drive.recording`'s and :mod:`predictive_drive.readback`'s).
 
 A bag is a directory ``<run>/`` holding ``<run>_0.mcap`` and ``metadata.yaml`` (rosbag2 version 9).
 The MCAP file uses profile ``ros2``, ``ros2msg`` schemas with full definitions, ``cdr`` messages,
 channel metadata ``offered_qos_profiles`` and ``topic_type_hash``, a ``rosbag2`` metadata record, and a
 ``predictive_drive`` metadata record with the scenario file, strategy names, engine and version.
 Chunks are small and flushed as they fill, so a file cut short by a crash still yields every complete
-chunk; :func:`read_bag` falls back to a streaming read for such files.
+chunk; :func:`read_records` falls back to a streaming read for such files.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import heapq
 import json
 import os
@@ -29,24 +29,20 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from . import __version__
-from .codec import CODECS, ParameterEvent, decode_parameter_event
-from .core.signals import STATE_INDEX
-from .core.trace import RECORDS, Trace, TraceBuilder
 from .errors import BagError
-from .interface import BAG_TOPICS, RECORD_TOPICS, TOPICS
+from .interface import BAG_TOPICS, TOPICS
 from .schemas import message_definition, type_hash
 
 __all__ = [
     "LOGS_DIR",
-    "BagInfo",
-    "BagStatus",
+    "META_NAME",
     "BagWriter",
     "RecordedTopic",
     "RepairResult",
-    "bag_status",
     "check_new_bag",
     "iter_messages",
-    "read_bag",
+    "mcap_file",
+    "read_records",
     "recorded_topics",
     "repair_bag",
 ]
@@ -110,9 +106,6 @@ def check_new_bag(directory: str | Path) -> Path:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise BagError(f"--out {d}: cannot create it: {parent} is not writable")
     return d
-
-
-K = STATE_INDEX.k  #: the step index: the first field of every per-step record
 
 
 def _qos_yaml(topic_key: str) -> str:
@@ -305,49 +298,6 @@ class BagWriter:
         tmp.replace(self.directory / "metadata.yaml")
 
 
-@dataclass(frozen=True)
-class BagStatus:
-    """What a launcher can say of a bag after its run: readable at all, closed (indexed, with a
-    footer), and the whole steps it holds."""
-
-    path: Path
-    readable: bool
-    closed: bool
-    steps: int
-
-    def describe(self) -> str:
-        if not self.readable:
-            return f"the bag {self.path} holds no readable step"
-        if self.closed:
-            return f"the bag {self.path} was closed with {self.steps} steps"
-        return (
-            f"the bag {self.path} was not closed (no index): it reads up to its last complete "
-            f"chunk, {self.steps} steps; `predictive-drive repair {self.path}` rebuilds its index"
-        )
-
-
-def bag_status(bag: str | Path) -> BagStatus:
-    """Read a bag back to say what state it is in (never raises for a bad bag)."""
-    try:
-        trace, info = read_bag(bag)
-    except (BagError, OSError):
-        return BagStatus(Path(bag), False, False, 0)
-    return BagStatus(Path(bag), True, info.complete, trace.steps)
-
-
-@dataclass
-class BagInfo:
-    path: Path
-    info: dict[str, str]
-    counts: dict[str, int]
-    complete: bool  #: False if the file had to be read as a truncated stream
-    #: rosbag2's custom_data, written when the bag closed (``strategies``: the spans each
-    #: strategy was in force, JSON; ``outcome``: the run's final diagnostics); {} if it did not
-    custom: dict[str, str] = dataclasses.field(default_factory=dict)
-    #: the accepted parameter changes recorded on /parameter_events, with their log times (ns)
-    events: tuple[tuple[int, ParameterEvent], ...] = ()
-
-
 def mcap_file(bag: str | Path) -> Path:
     """The recording of a bag directory (one ``.mcap`` file, and a ``metadata.yaml`` that is
     rosbag2's if there is one) or the ``.mcap`` file given; BagError says what is wrong."""
@@ -379,10 +329,11 @@ def _check_metadata_yaml(path: Path) -> None:
         raise BagError(f"{path}: not rosbag2 metadata (no rosbag2_bagfile_information mapping)")
 
 
-def _iter_records(
+def read_records(
     path: Path,
 ) -> tuple[list[tuple[Channel, Message]], dict[str, dict[str, str]], bool]:
-    """(channel, message) pairs and metadata records; tolerant of a file cut short."""
+    """Every (channel, message) pair in file order, the metadata records by name, and whether
+    the file is whole (indexed): a file cut short is read as a stream up to its cut."""
     msgs: list[tuple[Channel, Message]] = []
     meta: dict[str, dict[str, str]] = {}
     try:
@@ -413,69 +364,14 @@ def _iter_records(
     return msgs, meta, False
 
 
-def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
-    """Decode the per-step topics of a recording into a :class:`Trace` (complete steps only)."""
-    path = mcap_file(bag)
-    msgs, meta, complete = _iter_records(path)
-    if META_NAME not in meta:
-        raise BagError(f"{path}: not a predictive_drive recording (no '{META_NAME}' metadata)")
-    info = meta[META_NAME]
-    by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
-    rows: dict[str, dict[int, tuple[float, ...]]] = {rec: {} for rec in RECORDS}
-    counts: dict[str, int] = {}
-    events: list[tuple[int, ParameterEvent]] = []
-    for channel, message in msgs:
-        counts[channel.topic] = counts.get(channel.topic, 0) + 1
-        rec = by_name.get(channel.topic)
-        if rec is None:
-            if channel.topic == TOPICS["parameter_events"].name:
-                events.append((message.log_time, decode_parameter_event(message.data)))
-            continue
-        values = CODECS[RECORD_TOPICS[rec]].decode(message.data)
-        rows[rec][int(values[K])] = values
-    ts = float(info["ts"])
-    builder = TraceBuilder(ts, tuple(json.loads(info["strategy_names"])))
-    # keep the longest prefix of whole steps: states and references 0..n, commands 0..n-1
-    n = 0
-    while (
-        n in rows["command"]
-        and n + 1 in rows["state"]
-        and n + 1 in rows["reference"]
-        and n in rows["state"]
-        and n in rows["reference"]
-    ):
-        n += 1
-    if n == 0:
-        raise BagError(f"{path}: the recording holds no complete step")
-    for k in range(n + 1):
-        builder.add("state", rows["state"][k])
-        builder.add("reference", rows["reference"][k])
-    for k in range(n):
-        builder.add("command", rows["command"][k])
-    custom = _custom_data(meta.get("rosbag2", {}))
-    events.sort(key=lambda e: e[0])
-    return builder.build(), BagInfo(path, info, counts, complete, custom, tuple(events))
-
-
-def _custom_data(rosbag2: dict[str, str]) -> dict[str, str]:
-    """custom_data of the rosbag2 metadata record ({} for a bag that never closed)."""
-    try:
-        serialized = yaml.safe_load(rosbag2.get("serialized_metadata", "")) or {}
-    except yaml.YAMLError:
-        return {}
-    custom = serialized.get("custom_data") if isinstance(serialized, dict) else None
-    return {str(k): str(v) for k, v in custom.items()} if isinstance(custom, dict) else {}
-
-
 @dataclass(frozen=True)
 class RepairResult:
-    """What :func:`repair_bag` did: the repaired bag, where the original file is kept, the
-    messages and whole steps the repaired bag holds."""
+    """What :func:`repair_bag` did: the repaired bag, where the original file is kept, and the
+    messages the repaired bag holds."""
 
     bag: Path
     original: Path | None  #: None when the bag was intact and left alone
     messages: int
-    steps: int
 
 
 def repair_bag(bag: str | Path) -> RepairResult:
@@ -484,12 +380,11 @@ def repair_bag(bag: str | Path) -> RepairResult:
     ``ros2 bag reindex`` / ``mcap recover`` do. The original file is kept beside it as
     ``<name>.mcap.orig``; an intact bag is left as it is."""
     path = mcap_file(bag)
-    msgs, meta, complete = _iter_records(path)
+    msgs, meta, complete = read_records(path)
     if META_NAME not in meta:
         raise BagError(f"{path}: not a predictive_drive recording (no '{META_NAME}' metadata)")
     if complete:
-        trace, _ = read_bag(path.parent)
-        return RepairResult(path.parent, None, len(msgs), trace.steps)
+        return RepairResult(path.parent, None, len(msgs))
     original = path.with_name(path.name + ".orig")
     if original.exists():
         raise BagError(f"{path}: {original} exists already; move it away to repair again")
@@ -510,8 +405,7 @@ def repair_bag(bag: str | Path) -> RepairResult:
         meta_yaml.write_text(meta_yaml.read_text().replace(w.path.name, path.name))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    trace, _ = read_bag(path.parent)
-    return RepairResult(path.parent, original, w.message_count, trace.steps)
+    return RepairResult(path.parent, original, w.message_count)
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from ..bag import read_bag
 from ..core.analysis import DERIVATION_RULE, derive_candidates, utilization
 from ..core.control.candidates import TABLES, class_document
 from ..errors import ConfigError
+from ..readback import read_bag
 from ..recording import scenario_of
 from ..reports.papers import PAPER_001_TABLE1
 from .report import metrics_window

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from ..bag import read_bag
 from ..core.runner import build_controller
 from ..core.signals import Reference, State
+from ..readback import read_bag
 from ..recording import scenario_of
 
 __all__ = ["controller_replay"]

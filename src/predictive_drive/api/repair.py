@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import repair_bag
+from ..readback import read_bag
 
 __all__ = ["repair"]
 
@@ -19,5 +20,5 @@ def repair(bag: str | Path) -> dict[str, Any]:
         "repaired": r.original is not None,
         "original": None if r.original is None else str(r.original),
         "messages": r.messages,
-        "steps": r.steps,
+        "steps": read_bag(r.bag)[0].steps,
     }

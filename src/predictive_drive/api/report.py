@@ -8,12 +8,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..bag import BagInfo, read_bag
 from ..core.analysis import load_steps
 from ..core.machines import Machine
 from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
 from ..core.trace import Trace
+from ..readback import BagInfo, read_bag
 from ..recording import StrategySpan, scenario_of, spans_from_json, strategy_spans
 
 __all__ = [

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..bag import BagWriter, bag_status, check_new_bag
+from ..bag import BagWriter, check_new_bag
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.metrics import Metrics
@@ -18,6 +18,7 @@ from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import ConfigError, Interrupted
 from ..live import LiveView, check_port
+from ..readback import bag_status
 from ..recording import RunRecorder, bag_info, default_bag_dir
 from .report import details_of, evaluate
 

@@ -22,11 +22,12 @@ from typing import Any
 
 import yaml
 
-from ..bag import LOGS_DIR, bag_status, check_new_bag
+from ..bag import LOGS_DIR, check_new_bag
 from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import GraphError
 from ..interface import CLOCK_PERIOD, LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
+from ..readback import bag_status
 from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
 
 __all__ = ["isolated_domain", "run_graph", "stop_processes"]

@@ -23,13 +23,14 @@ from typing import Any
 
 import yaml
 
-from ..bag import LOGS_DIR, BagWriter, read_bag
+from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, stamp_ns
 from ..core.control import strategy_names
 from ..core.signals import COMMAND_INDEX, PULSES
 from ..core.trace import Trace
 from ..errors import GraphError
 from ..interface import NAMESPACE, STEPPER_NODE, TOPICS, node_name
+from ..readback import read_bag
 from ..recording import bag_info, scenario_of, tool_every, tool_messages
 from .launcher import isolated_domain, stop_processes
 from .placement import ros_env
