@@ -68,7 +68,7 @@ def test_the_installed_nodes_run_as_ros2_run_starts_them(install, tmp_path):
     from predictive_drive.config import load_scenario
     from predictive_drive.core.runner import run_inprocess
     from predictive_drive.readback import read_bag
-    from predictive_drive.ros.launcher import isolated_domain
+    from predictive_drive.ros.processes import isolated_domain
 
     params = install / "share" / "predictive_drive" / "config" / "im_short.yaml"
     work = tmp_path / "run"

@@ -196,7 +196,7 @@ def test_a_full_disk_in_process_is_a_clear_error(tmp_path):
 
 
 def test_domain_locks_are_open_to_every_user():
-    from predictive_drive.ros.launcher import LOCK_DIR, isolated_domain
+    from predictive_drive.ros.processes import LOCK_DIR, isolated_domain
 
     with isolated_domain() as d:
         assert stat.S_IMODE(LOCK_DIR.stat().st_mode) == 0o1777

@@ -362,7 +362,7 @@ def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
     """The request comes late (3 s after the start, when the drive would long be past step 500):
     the drive waits at step 500 for it, and the switch lands there. Without a request, the wait
     ends the run after peer_timeout, saying why."""
-    from predictive_drive.ros.launcher import isolated_domain
+    from predictive_drive.ros.processes import isolated_domain
 
     common = {"duration": 0.05, "peer_timeout": 10.0, "switch_steps": [500]}
     with isolated_domain() as domain:
@@ -481,7 +481,8 @@ def test_nodes_stopped_as_ros2_launch_stops_them_end_cleanly(tmp_path):
     """SIGINT to every node mid-run (what `ros2 launch` sends on Ctrl-C): each exits 0 (no
     "process has died"), says nothing on the way out (no rosout or traceback noise but the
     logger's last line), and the bag is closed, its outcome an ERROR naming the steps done."""
-    from predictive_drive.ros.launcher import START_ORDER, isolated_domain
+    from predictive_drive.ros.launcher import START_ORDER
+    from predictive_drive.ros.processes import isolated_domain
 
     procs = {}
     with isolated_domain() as domain:

@@ -61,7 +61,7 @@ def test_the_installed_package_is_the_one_running(install, tmp_path):
 
 
 def test_every_verb_runs_from_the_install(install, tmp_path):
-    from predictive_drive.ros.launcher import isolated_domain
+    from predictive_drive.ros.processes import isolated_domain
 
     work = tmp_path / "work"  # a user's own folder: no config/, no package.xml
     work.mkdir()

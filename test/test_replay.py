@@ -81,7 +81,7 @@ class Listener:
 
 @pytest.mark.parametrize("rate", [1.0, 0.25])
 def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recording, rate):
-    from predictive_drive.ros.launcher import isolated_domain
+    from predictive_drive.ros.processes import isolated_domain
 
     with isolated_domain() as domain:
         env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}

@@ -16,21 +16,16 @@ __all__ = ["replay", "replay_into"]
 def replay(bag: str | Path, **options: Any) -> dict[str, Any]:
     """Play ``bag`` (options: :class:`~predictive_drive.ros.player_node.PlayOptions`) and say
     what was published, the achieved rate (recorded s per wall s) and the final lag."""
-    import rclpy
-    from rclpy.context import Context
-
     from ..ros.params import domain_id
     from ..ros.player_node import PlayOptions, play
+    from ..ros.transport import ros_context
 
     opts = PlayOptions(**options)
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id())
     try:
-        result = play(bag, opts, context=ctx)
+        with ros_context(domain_id()) as ctx:
+            result = play(bag, opts, context=ctx)
     except KeyboardInterrupt:
         raise GraphError("replay interrupted") from None
-    finally:
-        rclpy.try_shutdown(context=ctx)
     return {"bag": str(bag), **dataclasses.asdict(result)}
 
 

@@ -7,20 +7,13 @@ then ends every child by PID: SIGINT (the logger closes its bag), then SIGTERM, 
 
 from __future__ import annotations
 
-import fcntl
-import os
 import re
-import signal
 import subprocess
 import sys
-import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 from ..bag import LOGS_DIR, check_new_bag
 from ..core.scenario import Scenario
@@ -29,90 +22,14 @@ from ..errors import GraphError
 from ..interface import CLOCK_PERIOD, LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
 from ..readback import bag_status
 from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
+from .processes import isolated_domain, node_command, parameter_args, start_process, stop_processes
 
-__all__ = ["isolated_domain", "run_graph", "stop_processes"]
+__all__ = ["START_ORDER", "run_graph"]
 
-#: start order: the logger first, so it listens before the plant looks for its peers
-START_ORDER = ("metrics_logger", "torque_controller", "speed_pi", "plant")
-DOMAIN_RANGE = range(1, 101)  # 101..232 left to tests and users
-LOCK_DIR = Path(tempfile.gettempdir()) / "predictive_drive_domains"
-
-
-@contextmanager
-def isolated_domain() -> Iterator[int]:
-    """A ROS_DOMAIN_ID no other predictive_drive run on this machine holds (flock'ed). The lock
-    folder and files are open to every user (mode 1777 and 0666), so a second user's runs take
-    other domains instead of failing on a lock file the first one created."""
-    LOCK_DIR.mkdir(exist_ok=True)
-    try:
-        os.chmod(LOCK_DIR, 0o1777)  # mkdir's mode is cut by the umask; an older one is mended
-    except PermissionError:
-        pass  # another user's folder: theirs to open
-    start = os.getpid() % len(DOMAIN_RANGE)
-    for i in range(len(DOMAIN_RANGE)):
-        d = DOMAIN_RANGE[(start + i) % len(DOMAIN_RANGE)]
-        path = LOCK_DIR / f"{d}.lock"
-        try:
-            fd = os.open(path, os.O_RDONLY | os.O_CREAT, 0o666)  # flock needs no write access
-        except PermissionError:
-            continue  # another user's file we cannot even read: their domain
-        try:
-            os.fchmod(fd, 0o666)
-        except PermissionError:
-            pass  # another user's file: readable is enough
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            continue
-        try:
-            yield d
-        finally:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-            os.close(fd)
-        return
-    raise GraphError("no free ROS domain id: 100 predictive_drive runs at once?")
-
-
-#: s a child may take to close once asked (messages in flight, the bag), before SIGTERM
-STOP_GRACE = 45.0
 #: an rclpy log line: ``[ERROR] [<wall time>] [<logger>]: <message>``
 _ERROR_LINE = re.compile(r"^\[(?:ERROR|FATAL)\] \[(\d+\.\d+)\] \[[^\]]*\]: (.*)$", re.MULTILINE)
-
-
-def _stopped(pid: int) -> bool:
-    """The process is stopped by a signal (SIGSTOP, a debugger): it cannot close until resumed."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in ("T", "t")
-    except (OSError, IndexError):
-        return False
-
-
-def stop_processes(procs: dict[str, subprocess.Popen[bytes]], *, grace: float = STOP_GRACE) -> None:
-    """End every still-running child by PID: SIGINT (it finishes what is in flight and closes),
-    then SIGTERM, then SIGKILL, each with a timeout; says so when it waits for a stopped one."""
-    for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
-        alive = {n: p for n, p in procs.items() if p.poll() is None}
-        if not alive:
-            return
-        for p in alive.values():
-            try:
-                os.kill(p.pid, sig)
-            except ProcessLookupError:
-                pass
-        deadline = time.monotonic() + wait
-        said = set()
-        while time.monotonic() < deadline and any(p.poll() is None for p in alive.values()):
-            for n, p in alive.items():
-                if n not in said and p.poll() is None and _stopped(p.pid):
-                    said.add(n)
-                    print(
-                        f"predictive-drive: {n} (pid {p.pid}) is stopped by a signal; waiting up "
-                        f"to {wait:.0f} s for it to go on and close",
-                        file=sys.stderr,
-                        flush=True,
-                    )
-            time.sleep(0.05)
+#: start order: the logger first, so it listens before the plant looks for its peers
+START_ORDER = ("metrics_logger", "torque_controller", "speed_pi", "plant")
 
 
 def _tail(path: Path, n: int = 12) -> str:
@@ -149,11 +66,9 @@ def run_graph(
     bag = check_new_bag(bag).resolve()
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
-    # node-specific entries beat wildcard ones and later files beat earlier ones, so the command
-    # line's overrides go into a second parameter file with one section per node
-    overrides = {node_name(n): {"ros__parameters": dict(shared)} for n in NODES}
-    overrides[node_name("torque_controller")]["ros__parameters"]["strategy"] = sc.strategy
-    overrides[node_name("metrics_logger")]["ros__parameters"].update(
+    overrides = {node_name(n): dict(shared) for n in NODES}
+    overrides[node_name("torque_controller")]["strategy"] = sc.strategy
+    overrides[node_name("metrics_logger")].update(
         strategy=sc.strategy,
         bag=str(bag),
         scenario_file=source,
@@ -162,16 +77,14 @@ def run_graph(
     )
     # the launcher follows /clock for progress and switches: step 0 waits for it too
     watching = bool(switches) or progress is not None
-    overrides[node_name("plant")]["ros__parameters"]["await_launcher"] = watching
+    overrides[node_name("plant")]["await_launcher"] = watching
     if switches:  # each lands exactly at its step: the plant waits there for the controller
         steps = sorted(step_index(t, sc.ts) for t, _ in switches)
         for n in ("plant", "torque_controller"):
-            overrides[node_name(n)]["ros__parameters"]["switch_steps"] = list(steps)
+            overrides[node_name(n)]["switch_steps"] = list(steps)
     logs = bag / LOGS_DIR
     logs.mkdir(parents=True, exist_ok=True)
-    override_file = logs / "overrides.yaml"
-    override_file.write_text(yaml.safe_dump(overrides))
-    args = ["--ros-args", "--params-file", source, "--params-file", str(override_file)]
+    args = parameter_args(source, overrides, logs)
     with isolated_domain() as domain:
         env = ros_env(domain)
         plan = {} if composed else cpu_plan(affinity)
@@ -180,22 +93,14 @@ def run_graph(
         procs: dict[str, subprocess.Popen[bytes]] = {}
         # the launcher's own node: the plant waits for its /clock subscription before step 0
         watcher = _ClockWatcher(domain, sc, switches, progress) if watching else None
-        commands = (
-            {"composed": ["predictive_drive.ros.composed", *args]}
-            if composed
-            else {n: [f"predictive_drive.ros.{n}_node", *args] for n in START_ORDER}
-        )
+        modules = {"composed": "composed"} if composed else {n: f"{n}_node" for n in START_ORDER}
         try:
-            for name, cmd in commands.items():
-                with (logs / f"{name}.log").open("wb") as out:  # the child keeps its own fd
-                    procs[name] = subprocess.Popen(
-                        [sys.executable, "-m", *cmd],
-                        env={**env, CPUS_ENV: plan[name]} if name in plan else env,
-                        stdout=out,
-                        stderr=subprocess.STDOUT,
-                        stdin=subprocess.DEVNULL,
-                        start_new_session=True,
-                    )
+            for name, module in modules.items():
+                procs[name] = start_process(
+                    [*node_command(module), *args],
+                    log=logs / f"{name}.log",
+                    env={**env, CPUS_ENV: plan[name]} if name in plan else env,
+                )
             print(
                 f"predictive-drive: graph on ROS_DOMAIN_ID={domain}: "
                 + ", ".join(
@@ -293,17 +198,12 @@ class _ClockWatcher:
         switches: Sequence[tuple[float, str]],
         progress: Callable[[int], None] | None,
     ) -> None:
-        import rclpy
-        from rclpy.context import Context
         from rclpy.parameter_client import AsyncParameterClient
 
-        from .transport import executor
+        from .transport import ros_session
 
-        self.ctx = Context()
-        rclpy.init(context=self.ctx, domain_id=domain)
-        self.node = rclpy.create_node(LAUNCHER_NODE, namespace=NAMESPACE, context=self.ctx)
-        self.ex = executor(self.ctx)
-        self.ex.add_node(self.node)
+        self._session = ros_session(LAUNCHER_NODE, domain=domain, namespace=NAMESPACE)
+        self.node, self.ex = self._session.__enter__()
         self.ts = sc.ts
         self.progress = progress
         self.pending = sorted(switches)
@@ -378,8 +278,4 @@ class _ClockWatcher:
         )
 
     def close(self) -> None:
-        import rclpy
-
-        self.ex.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
+        self._session.__exit__(None, None, None)

@@ -31,7 +31,7 @@ from ..core.scenario import RunParams
 from ..errors import ConfigError, GraphError
 from ..interface import NAMESPACE, TOPICS
 from .placement import apply_placement, launcher_pid
-from .transport import LocalBus, Outlet, executor, msg_class, qos
+from .transport import LocalBus, Outlet, executor, raw_publisher, raw_subscription
 
 __all__ = [
     "DriveNode",
@@ -189,6 +189,20 @@ class DriveNode(Node):
         cls, nested = self.section_class(run)
         return run, build_section(cls, self.declare_fields(cls, nested), nested, where)
 
+    def declare_switch_steps(self, what: str) -> list[int]:
+        """The read-only ``switch_steps`` parameter: the steps of the launcher's scheduled
+        strategy switches (``--switch``), sorted; ``what`` says what this node does at them."""
+        value = self.declare_parameter(
+            "switch_steps",
+            None,
+            ParameterDescriptor(
+                description=f"steps of the launcher's scheduled strategy switches: {what}",
+                read_only=True,
+                dynamic_typing=True,
+            ),
+        ).value
+        return sorted(int(k) for k in value or [])
+
     @property
     def peer_timeout(self) -> float:
         return self.timeouts.peer_timeout
@@ -199,8 +213,7 @@ class DriveNode(Node):
 
     # -- lock-step helpers --------------------------------------------------------------------
     def publisher(self, key: str) -> Any:
-        t = TOPICS[key]
-        pub = self.create_publisher(msg_class(t.type), t.name, qos(t.qos))
+        pub = raw_publisher(self, key)
         return pub if self.bus is None else Outlet(pub, self.bus)
 
     def subscription(
@@ -208,11 +221,10 @@ class DriveNode(Node):
     ) -> Any:
         """Raw (serialized) subscription; through the process's :class:`LocalBus` if it has one,
         unless ``dds`` (a topic rclpy itself publishes, such as /parameter_events)."""
-        t = TOPICS[key]
         if self.bus is not None and not dds:
-            self.bus.subscribe(t.name, callback)
+            self.bus.subscribe(TOPICS[key].name, callback)
             return None
-        return self.create_subscription(msg_class(t.type), t.name, callback, qos(t.qos), raw=True)
+        return raw_subscription(self, key, callback)
 
     def wait_matched(self, pub: Any, count: int, what: str) -> None:
         """Block (briefly, in a callback is fine: matching runs in DDS threads) until ``pub`` has

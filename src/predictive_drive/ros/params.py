@@ -6,14 +6,12 @@ import os
 import time
 from typing import Any
 
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from ..errors import ConfigError, GraphError
 from ..interface import PARAM_NODE, node_name
-from .transport import executor
+from .transport import ros_session
 
 __all__ = ["domain_id", "param"]
 
@@ -47,12 +45,7 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
     GraphError with the node's reason when a set is rejected or the parameter does not exist."""
     node = node_name(node)
     domain = domain_id()
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    me = rclpy.create_node(PARAM_NODE, context=ctx)
-    ex = executor(ctx)
-    try:
-        ex.add_node(me)
+    with ros_session(PARAM_NODE, domain=domain) as (me, ex):
         client = AsyncParameterClient(me, node)
         if not client.wait_for_services(timeout_sec=timeout):
             raise GraphError(
@@ -81,10 +74,6 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
         if not r.successful:
             raise GraphError(f"{node}: setting {name} to {value!r} was rejected: {r.reason}")
         return _value(value)
-    finally:
-        ex.shutdown(timeout_sec=1.0)
-        me.destroy_node()
-        rclpy.try_shutdown(context=ctx)
 
 
 def _listing(client: AsyncParameterClient, ex: Any) -> str:

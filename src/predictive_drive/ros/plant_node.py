@@ -64,18 +64,8 @@ class PlantNode(WatchedNode):
         ).value
         #: scheduled strategy switches (--switch): state k is not published before the torque
         #: controller has taken every switch scheduled at or before k
-        self.switch_steps = sorted(
-            self.declare_parameter(
-                "switch_steps",
-                None,
-                ParameterDescriptor(
-                    description="steps of the launcher's scheduled strategy switches: the plant "
-                    "waits at each until /drive/torque_controller has taken it",
-                    read_only=True,
-                    dynamic_typing=True,
-                ),
-            ).value
-            or []
+        self.switch_steps = self.declare_switch_steps(
+            "the plant waits at each until /drive/torque_controller has taken it"
         )
         self.switches_taken = 0
         self._strategy_seen = ""  #: the last strategy the controller announced

@@ -15,13 +15,10 @@ differ — read its agreement as "what it would have decided here", not as a clo
 from __future__ import annotations
 
 import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, stamp_ns
@@ -29,11 +26,12 @@ from ..core.control import strategy_names
 from ..core.signals import COMMAND_INDEX, PULSES
 from ..core.trace import Trace
 from ..errors import GraphError
-from ..interface import NAMESPACE, STEPPER_NODE, TOPICS, node_name
+from ..interface import NAMESPACE, STEPPER_NODE, node_name
 from ..readback import read_bag
 from ..recording import bag_info, scenario_of, tool_every, tool_messages
-from .launcher import isolated_domain, stop_processes
 from .placement import ros_env
+from .processes import isolated_domain, node_command, parameter_args, start_process, stop_processes
+from .transport import raw_publisher, raw_subscription, ros_session
 
 __all__ = ["StepResult", "replay_into"]
 
@@ -59,12 +57,8 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
     """Feed the recording ``source`` into a torque controller node step by step and record the
     result to ``out``. ``strategy``: the one strategy to replay into (default: the recording's
     own, switched at the recorded steps)."""
-    import rclpy
-    from rclpy.context import Context
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
-
-    from .transport import executor, msg_class, qos
 
     trace, info = read_bag(source)
     sc = scenario_of(info.info, info.path)
@@ -81,50 +75,28 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
     scenario_file.write_text(sc.text)
     overrides = {
         node_name("torque_controller"): {
-            "ros__parameters": {
-                "duration": n * sc.ts,
-                "strategy": plan[0],
-                "command_readers": 1,
-                "peer_timeout": COMMAND_TIMEOUT,
-            }
+            "duration": n * sc.ts,
+            "strategy": plan[0],
+            "command_readers": 1,
+            "peer_timeout": COMMAND_TIMEOUT,
         }
     }
-    (logs / "overrides.yaml").write_text(yaml.safe_dump(overrides))
-    args = ["--ros-args", "--params-file", str(scenario_file)]
-    args += ["--params-file", str(logs / "overrides.yaml")]
+    args = parameter_args(scenario_file, overrides, logs)
     commands: list[bytes] = []
-    with isolated_domain() as domain:
-        ctx = Context()
-        rclpy.init(context=ctx, domain_id=domain)
-        me = rclpy.create_node(STEPPER_NODE, namespace=NAMESPACE, context=ctx)
-        ex = executor(ctx)
-        ex.add_node(me)
+    with (
+        isolated_domain() as domain,
+        ros_session(STEPPER_NODE, domain=domain, namespace=NAMESPACE) as (me, ex),
+    ):
         got: list[bytes] = []
-        sub = me.create_subscription(
-            msg_class(TOPICS["command"].type),
-            TOPICS["command"].name,
-            got.append,
-            qos(TOPICS["command"].qos),
-            raw=True,
-        )
-        pub_state = me.create_publisher(
-            msg_class(TOPICS["state"].type), TOPICS["state"].name, qos(TOPICS["state"].qos)
-        )
-        pub_ref = me.create_publisher(
-            msg_class(TOPICS["reference"].type),
-            TOPICS["reference"].name,
-            qos(TOPICS["reference"].qos),
-        )
+        sub = raw_subscription(me, "command", got.append)
+        pub_state = raw_publisher(me, "state")
+        pub_ref = raw_publisher(me, "reference")
         client = AsyncParameterClient(me, node_name("torque_controller"))
-        with (logs / "torque_controller.log").open("wb") as log:
-            proc = subprocess.Popen(
-                [sys.executable, "-m", "predictive_drive.ros.torque_controller_node", *args],
-                env=ros_env(domain),
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-            )
+        proc = start_process(
+            [*node_command("torque_controller_node"), *args],
+            log=logs / "torque_controller.log",
+            env=ros_env(domain),
+        )
         procs = {"torque_controller": proc}
         try:
 
@@ -157,9 +129,6 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
             commands = got[:n]
         finally:
             stop_processes(procs)
-            ex.shutdown(timeout_sec=1.0)
-            me.destroy_node()
-            rclpy.try_shutdown(context=ctx)
     new = [CODECS["command"].decode(c) for c in commands]
     _record(out, source, trace, sc, new, plan[0] if strategy is None else strategy, info.info)
     rec = trace.command

@@ -8,7 +8,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
 from rclpy.parameter import Parameter
 
@@ -65,18 +65,8 @@ class TorqueControllerNode(WatchedNode):
         self.sub_ref = self.subscription("reference", self.on_reference)
         #: the launcher's scheduled switches (--switch): a strategy request is applied at the
         #: next of these steps instead of at once, so it lands exactly where it was scheduled
-        self.schedule: list[int] = sorted(
-            self.declare_parameter(
-                "switch_steps",
-                None,
-                ParameterDescriptor(
-                    description="steps of the launcher's scheduled strategy switches: a "
-                    "strategy request is applied at the next of them",
-                    read_only=True,
-                    dynamic_typing=True,
-                ),
-            ).value
-            or []
+        self.schedule = self.declare_switch_steps(
+            "a strategy request is applied at the next of them"
         )
         self._deferred: list[tuple[int, str]] = []
         self.add_on_set_parameters_callback(self.on_set_parameters)

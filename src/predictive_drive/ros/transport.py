@@ -5,14 +5,25 @@ from __future__ import annotations
 
 import importlib
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..interface import Qos
+from ..interface import TOPICS, Qos
 
-__all__ = ["LocalBus", "Outlet", "executor", "msg_class", "qos"]
+__all__ = [
+    "LocalBus",
+    "Outlet",
+    "executor",
+    "msg_class",
+    "qos",
+    "raw_publisher",
+    "raw_subscription",
+    "ros_context",
+    "ros_session",
+]
 
 
 def qos(q: Qos) -> QoSProfile:
@@ -36,10 +47,58 @@ def executor(context: Any = None) -> Any:
     return EventsExecutor(context=context)
 
 
+@contextmanager
+def ros_context(domain: int) -> Iterator[Any]:
+    """An rclpy context of its own on ROS domain ``domain``, shut down however the block ends
+    (a tool's process: the launcher's watch, the player, the stepper, ``param``)."""
+    import rclpy
+    from rclpy.context import Context
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    try:
+        yield ctx
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+@contextmanager
+def ros_session(
+    name: str, *, domain: int, namespace: str | None = None
+) -> Iterator[tuple[Any, Any]]:
+    """``(node, executor)``: a node ``name`` (in ``namespace``) on a context of its own, added
+    to an executor of its own; node, executor and context end with the block."""
+    import rclpy
+
+    with ros_context(domain) as ctx:
+        node = rclpy.create_node(name, namespace=namespace, context=ctx)
+        ex = executor(ctx)
+        ex.add_node(node)
+        try:
+            yield node, ex
+        finally:
+            ex.shutdown(timeout_sec=1.0)
+            node.destroy_node()
+
+
 def msg_class(type_name: str) -> Any:
     """The rclpy message class of ``pkg/msg/Type``."""
     pkg, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def raw_publisher(node: Any, key: str) -> Any:
+    """A publisher of topic ``key`` of the topic table, with its type and QoS; it publishes the
+    serialized bytes of :mod:`predictive_drive.codec`."""
+    t = TOPICS[key]
+    return node.create_publisher(msg_class(t.type), t.name, qos(t.qos))
+
+
+def raw_subscription(node: Any, key: str, callback: Callable[[bytes], None]) -> Any:
+    """A subscription of topic ``key`` of the topic table that hands ``callback`` the message's
+    serialized bytes."""
+    t = TOPICS[key]
+    return node.create_subscription(msg_class(t.type), t.name, callback, qos(t.qos), raw=True)
 
 
 class LocalBus:
