@@ -21,7 +21,7 @@ run: setup
 test: setup
 	$(VENV)/bin/ruff check src test
 	$(VENV)/bin/ruff format --check src test
-	$(VENV)/bin/mypy --strict src/predictive_drive/core
+	$(VENV)/bin/mypy --strict src/predictive_drive
 	$(PY) -m pytest -q test
 
 # the fast tier alone: no ROS, no node processes

@@ -43,6 +43,7 @@ setup(
         "test": ["pytest>=8,<10", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
                  "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1", "mypy>=1.10,<3",
+                 "types-PyYAML>=6,<7", "types-tqdm>=4.60,<5",
                  "websocket-client>=1.7,<2"],
     },
     zip_safe=False,  # the nodes hand Fast DDS the path of ros/fastdds_profiles.xml

@@ -36,17 +36,17 @@ def s1_bag(tmp_path_factory):
 
 def test_analyze_regenerates_the_candidate_tables(s1_bag, tmp_path):
     d = analyze(s1_bag, write_tables=tmp_path / "tables.json")
-    assert d["threshold"] == pytest.approx(0.6) and d["steps"] == 80000
-    assert d["matches_tables"], d["differences"]
+    assert d.threshold == pytest.approx(0.6) and d.steps == 80000
+    assert d.matches_tables, d.differences
     # SPEC §3.3's printed column (ΔT > +th, Δψ ≥ 0) — the one paper 001 prints for strategy 3
-    assert d["derived"]["twelve_sector"]["T+psi+"][:3] == [[0, 2, 3], [0, 2, 3, 4], [0, 3, 4]]
+    assert d.derived["twelve_sector"]["T+psi+"][:3] == [[0, 2, 3], [0, 2, 3, 4], [0, 3, 4]]
     written = load_candidate_tables(tmp_path / "tables.json")
     assert (written.six, written.twelve) == (TABLES.six, TABLES.twelve)
     assert "as many of the class's steps" in written.rule
     # strategy 1 outputs V0 whenever |ΔT| <= 0.6 and evaluates all 7 vectors otherwise
-    bands = {b["band"]: b for b in d["bands"]}
-    assert bands[0.6]["n"] == bands[0.6]["n_v0"]
-    assert bands[None]["n"] == 80000
+    bands = {b.band: b for b in d.bands}
+    assert bands[0.6].n == bands[0.6].n_v0
+    assert bands[None].n == 80000
 
 
 def test_analyze_cli_prints_the_tables(s1_bag, capsys):
@@ -116,7 +116,7 @@ def test_analyze_needs_a_threshold_for_an_induction_run(tmp_path):
     run_inprocess_to_bag(sc, tmp_path / "im")
     with pytest.raises(ConfigError, match="--threshold"):
         analyze(tmp_path / "im")
-    assert analyze(tmp_path / "im", threshold=0.5)["steps"] == 200
+    assert analyze(tmp_path / "im", threshold=0.5).steps == 200
 
 
 def test_candidate_tables_must_keep_v0(tmp_path):
@@ -134,40 +134,39 @@ def test_candidate_tables_must_keep_v0(tmp_path):
 
 def test_reproduce_ipmsm_validation_shortened(tmp_path):
     d = reproduce("ipmsm_validation", duration=0.1, repeats=1, out_root=tmp_path)
-    rows = {r["strategy"]: r for r in d["rows"]}
+    rows = {r.strategy: r for r in d.rows}
     assert list(rows) == ["mptc", "simplified1", "simplified2", "simplified3"]
-    assert all(r["replay_identical"] for r in rows.values())
-    assert rows["mptc"]["compute_ratio"] == 1.0 and rows["mptc"]["cal_ave"] == 7.0
-    assert rows["simplified3"]["cal_ave"] < rows["simplified1"]["cal_ave"] < 7.0
-    assert rows["mptc"]["paper"]["t_rmse"] == 1.2668
-    assert 0 < rows["simplified2"]["compute_ratio"]
-    assert math.isnan(rows["mptc"]["thd"])  # the run ends before the THD window (0.2-0.5 s)
+    assert all(r.replay_identical for r in rows.values())
+    fig = {s: r.figures for s, r in rows.items()}
+    assert fig["mptc"]["compute_ratio"] == 1.0 and fig["mptc"]["cal_ave"] == 7.0
+    assert fig["simplified3"]["cal_ave"] < fig["simplified1"]["cal_ave"] < 7.0
+    assert rows["mptc"].paper["t_rmse"] == 1.2668
+    assert 0 < fig["simplified2"]["compute_ratio"]
+    assert math.isnan(fig["mptc"]["thd"])  # the run ends before the THD window (0.2-0.5 s)
 
 
 def test_reproduce_spmsm_sweep_shortened(tmp_path):
     d = reproduce("spmsm_analysis", duration=0.02, out_root=tmp_path)
-    th = [r["settings"].get("torque_controller.torque_threshold") for r in d["rows"]]
+    th = [r.settings.get("torque_controller.torque_threshold") for r in d.rows]
     assert th == [None] + [round(0.1 * i, 1) for i in range(1, 16)]
-    assert d["rows"][6]["label"] == "simplified1 ±0.6"
-    bag = d["rows"][6]["bag"]  # threshold 0.6: the bag stores the swept scenario
-    assert analyze(bag)["threshold"] == 0.6
-    assert analyze(d["rows"][15]["bag"])["threshold"] == 1.5
+    assert d.rows[6].label == "simplified1 ±0.6"
+    bag = d.rows[6].bag  # threshold 0.6: the bag stores the swept scenario
+    assert analyze(bag).threshold == 0.6
+    assert analyze(d.rows[15].bag).threshold == 1.5
 
 
 def test_mtpa_study_shortened_rows_and_claims(tmp_path):
     """The whole study on paper 002's scenario, each run shortened to 0.3 s (the first load
     step only): every strategy, mismatch and form gives its row with the model's optimum."""
     d = reproduce("hs_ipmsm_mtpa", duration=0.3, out_root=tmp_path)
-    rows = d["rows"]
+    rows = d.rows
     assert len(rows) == 3 + 2 * 8 + 1  # strategies, mismatched model-based ones, as_printed
-    keys = {"strategy", "mismatch", "load_torque", "theta_deg", "theta_mtpa_deg", "i_s"}
-    assert keys | {"i_s_mtpa", "i_s_zero_d", "settle_s"} <= set(rows[0])
-    assert all(r["load_torque"] == 2.0 for r in rows)
-    assert [r["theta_mtpa_deg"] for r in rows] == [pytest.approx(1.1085, abs=1e-3)] * len(rows)
-    formula = next(r for r in rows if r["strategy"] == "foc_formula")
-    assert formula["theta_deg"] == pytest.approx(formula["theta_mtpa_deg"], abs=0.05)
-    printed = [r for r in rows if r["form"] == "as_printed"]
-    assert len(printed) == 1 and printed[0]["theta_deg"] > 1.5 * printed[0]["theta_mtpa_deg"]
-    (claim,) = d["claims"]
-    assert claim["load_torque"] == 2.0 and claim["settles_under_1_s"]
-    assert claim["less_current_than_zero_d"] in ("confirmed", "not resolved", "refuted")
+    assert all(r.load_torque == 2.0 for r in rows)
+    assert [r.theta_mtpa_deg for r in rows] == [pytest.approx(1.1085, abs=1e-3)] * len(rows)
+    formula = next(r for r in rows if r.strategy == "foc_formula")
+    assert formula.theta_deg == pytest.approx(formula.theta_mtpa_deg, abs=0.05)
+    printed = [r for r in rows if r.form == "as_printed"]
+    assert len(printed) == 1 and printed[0].theta_deg > 1.5 * printed[0].theta_mtpa_deg
+    (claim,) = d.claims
+    assert claim.load_torque == 2.0 and claim.settles_under_1_s
+    assert claim.less_current_than_zero_d in ("confirmed", "not resolved", "refuted")

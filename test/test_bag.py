@@ -151,8 +151,8 @@ def test_existing_bag_directory_is_refused(recorded):
 def test_report_agrees_with_run(tmp_path):
     r = run("im_short", engine="inprocess", duration=0.1, strategy="mptc", out=tmp_path / "r")
     rep = report(tmp_path / "r")
-    assert rep["metrics"] == r.metrics.as_dict()
-    assert rep["strategy"] == "mptc" and rep["steps"] == 2000
+    assert rep.metrics == r.metrics
+    assert rep.strategy == "mptc" and rep.steps == 2000
 
 
 def test_switch_is_visible_in_recording(tmp_path):

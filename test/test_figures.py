@@ -115,4 +115,5 @@ def test_the_foxglove_layout_is_generated_and_names_the_right_fields():
             seen += 1
     assert seen == sum(len(s) for s in PLOTS.values())
     shipped = Path(__file__).parents[1] / "layouts" / "drive.foxglove.json"
-    assert json.loads(shipped.read_text()) == layout  # regenerate: predictive-drive layout
+    # regenerate: predictive-drive layout --out layouts/drive.foxglove.json
+    assert json.loads(shipped.read_text()) == layout

@@ -145,14 +145,14 @@ def test_timed_switch_through_parameter_service(tmp_path, engine):
     # the switch leaves a trace: the controller's parameter event (set ahead of its step, which
     # the controller then waits for), the strategies' spans in the metadata and the report
     rep = report(r.bag)
-    assert [(e["node"], e["changed"]) for e in rep["parameter_events"]] == [
+    assert [(e.node, e.changed) for e in rep.details.parameter_events] == [
         ("/drive/torque_controller", {"strategy": "db_mptc"})
     ]
-    assert rep["parameter_events"][0]["t"] <= 0.05
-    spans = [(d["strategy"], d["first"], d["last"]) for d in rep["strategies"]]
+    assert rep.details.parameter_events[0].t <= 0.05
+    spans = [(d.strategy, d.first, d.last) for d in rep.details.strategies]
     assert spans == [("mptc", 0, 999), ("db_mptc", 1000, 7999)]
     assert "strategies" in read_bag(r.bag)[1].custom  # from the metadata, not the commands
-    assert rep["outcome"].startswith("OK: complete: 8000 steps")
+    assert rep.details.outcome.startswith("OK: complete: 8000 steps")
     # written in log-time order (the graph delivers command k after state k+1), sequence
     # numbers per channel
     backwards, bad_seq, n = ordering_faults(next(r.bag.glob("*.mcap")))

@@ -159,7 +159,7 @@ def test_replay_into_the_strategy_that_made_it_reproduces_every_command(
     rec = tmp_path / "rec"
     run_inprocess_to_bag(load_scenario(scenario, strategy=strategy, duration=0.03), rec)
     d = replay_into(rec, out=tmp_path / "again")
-    assert d["agreement"] == {"vector": 1.0, "pulses": 1.0}
+    assert (d.vector_agreement, d.pulse_agreement) == (1.0, 1.0)
     a, _ = read_bag(rec)
     b, info = read_bag(tmp_path / "again")
     assert info.info["engine"] == "replay" and info.info["replay_of"] == str(rec.resolve())
@@ -176,7 +176,7 @@ def test_replay_into_another_strategy_and_across_a_recorded_switch(tmp_path):
     run("im_short", duration=0.05, strategy="mptc", switches=[(0.02, "db_mptc")],
         engine="inprocess", out=rec)  # fmt: skip
     same = replay_into(rec, out=tmp_path / "same")  # switched where the recording switched
-    assert same["agreement"] == {"vector": 1.0, "pulses": 1.0}
+    assert (same.vector_agreement, same.pulse_agreement) == (1.0, 1.0)
     other = replay_into(rec, strategy="mptc_db", out=tmp_path / "other")
-    assert 0.0 < other["agreement"]["pulses"] < 1.0 and other["steps"] == 1000
-    assert other["steps_per_s"] > 0 and other["compute_us_per_step"] > 0
+    assert 0.0 < other.pulse_agreement < 1.0 and other.steps == 1000
+    assert other.steps_per_s > 0 and other.compute_us_per_step > 0

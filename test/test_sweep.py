@@ -31,8 +31,12 @@ def same_rows(a, b) -> None:
     assert len(a) == len(b)
     for x, y in zip(a, b):
         assert (x.strategy, x.settings, x.error) == (y.strategy, y.settings, y.error)
-        mx = {k: v for k, v in (x.metrics or {}).items() if k not in MEASURED}
-        my = {k: v for k, v in (y.metrics or {}).items() if k not in MEASURED}
+        mx = {
+            k: v for k, v in (x.metrics.as_dict() if x.metrics else {}).items() if k not in MEASURED
+        }
+        my = {
+            k: v for k, v in (y.metrics.as_dict() if y.metrics else {}).items() if k not in MEASURED
+        }
         assert mx.keys() == my.keys()
         for k in mx:
             assert mx[k] == my[k] or (mx[k] != mx[k] and my[k] != my[k]), k  # NaN == NaN here
@@ -83,7 +87,7 @@ def test_a_sweep_row_is_the_run_with_its_settings(tmp_path):
         text = apply_settings(path.read_text(), row.settings, path)
         sc = load_scenario_text(text, path).with_strategy(row.strategy).with_duration(0.02)
         assert sc.controller.motor.l_m == pytest.approx(0.2751 * 0.95)
-        m = metrics_of(run_inprocess(sc), sc).as_dict()
+        m = metrics_of(run_inprocess(sc), sc)
         same_rows([row], [type(row)(row.strategy, row.settings, m)])
     with open(tmp_path / "t" / "sweep.csv") as f:
         lines = list(csv.DictReader(f))
@@ -92,14 +96,14 @@ def test_a_sweep_row_is_the_run_with_its_settings(tmp_path):
         if row.error:
             assert ln["error"] == row.error and ln["t_rmse"] == "nan"
         else:
-            assert float(ln["t_rmse"]) == row.metrics["t_rmse"]  # written exactly (repr)
+            assert float(ln["t_rmse"]) == row.metrics.t_rmse  # written exactly (repr)
     import pyarrow.parquet as pq
 
     t = pq.read_table(tmp_path / "t" / "sweep.parquet").to_pydict()
     assert t["torque_controller.lambda_psi"] == [20.0, 20.0, 50.0, 50.0] * 2
     assert t["torque_controller.motor.l_m"] == ["*0.95", "*-1"] * 4
     assert [x for x in t["f_ave_hz"] if not math.isnan(x)] == [
-        row.metrics["f_ave_hz"] for row in r.rows if not row.error
+        row.metrics.f_ave_hz for row in r.rows if not row.error
     ]
     assert sorted(p.name for p in (tmp_path / "f").iterdir()) == [
         "sweep_torque_controller_lambda_psi.png",
@@ -131,7 +135,7 @@ def test_ctrl_c_keeps_the_finished_rows_and_leaves_no_worker(tmp_path):
     before = set(descendants(os.getpid()))
     r = run_cases("im_short", cases, duration=0.05, jobs=2, progress=progress)
     assert r.interrupted and 3 <= len(r.rows) < 12 and seen[-1] == 3
-    assert all(row.metrics and row.metrics["steps"] > 0 and not row.error for row in r.rows)
+    assert all(row.metrics and row.metrics.steps > 0 and not row.error for row in r.rows)
     time.sleep(0.5)
     left = set(descendants(os.getpid())) - before
     # no pool worker left behind (the forkserver the pool forks them from and multiprocessing's
@@ -153,7 +157,7 @@ def test_the_same_grid_on_a_dask_cluster_gives_the_same_table(tmp_path):
     assert remote.engine == f"dask ({address}, 2 workers)" and local.engine.startswith("local")
     assert len(remote.rows) == 18 and not any(row.error for row in remote.rows)
     same_rows(remote.rows, local.rows)
-    assert np.isfinite([row.metrics["t_rmse"] for row in remote.rows]).all()
+    assert np.isfinite([row.metrics.t_rmse for row in remote.rows]).all()
 
 
 @pytest.mark.core

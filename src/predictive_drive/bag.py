@@ -19,7 +19,7 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, cast
 
 import yaml
 from mcap.exceptions import McapError
@@ -128,7 +128,9 @@ class BagWriter:
             self._file = _FlushingFile(self.path)
         except OSError as e:
             raise BagError(f"cannot write the bag {self.directory}: {e.strerror}") from None
-        self._writer = Writer(self._file, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
+        # the writer takes any object with write/tell/flush (an IO to its annotations)
+        out = cast(IO[bytes], self._file)
+        self._writer = Writer(out, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
         self._writer.start(profile="ros2", library=f"predictive_drive {__version__}")
         self._channels: dict[str, int] = {}
         self._counts: dict[str, int] = {}

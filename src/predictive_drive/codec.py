@@ -117,9 +117,9 @@ class CdrReader:
 
     def _unpack(self, code: str, size: int) -> int | float:
         self.align(size)
-        (v,) = struct.unpack_from("<" + code, self.data, self.off)
+        values: tuple[int | float, ...] = struct.unpack_from("<" + code, self.data, self.off)
         self.off += size
-        return v  # type: ignore[no-any-return]
+        return values[0]
 
     def u8(self) -> int:
         return int(self._unpack("B", 1))
@@ -313,8 +313,8 @@ def encode_parameter_event(t: float, node: str, changed: list[tuple[str, object]
         w.string(name)
         w.u8(kind)
         w.u8(bool(value) if kind == 1 else 0)
-        w.i64(int(value) if kind == 2 else 0)  # type: ignore[call-overload]
-        w.f64(float(value) if kind == 3 else 0.0)  # type: ignore[arg-type]
+        w.i64(value if kind == 2 and isinstance(value, int) else 0)
+        w.f64(value if kind == 3 and isinstance(value, float) else 0.0)
         w.string(str(value) if kind == 4 else "")
         for _ in range(5):  # byte, bool, integer, double and string arrays: empty
             w.u32(0)

@@ -14,7 +14,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -143,7 +143,7 @@ def spans_from_json(text: str) -> list[StrategySpan]:
 
 
 def strategy_spans(
-    strategy: Sequence[float], names: tuple[str, ...], k0: int = 0
+    strategy: Iterable[float], names: tuple[str, ...], k0: int = 0
 ) -> list[StrategySpan]:
     """The spans of a run's per-step strategy index (the command's ``strategy`` field)."""
     spans, k = [], k0

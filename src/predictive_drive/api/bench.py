@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ from ..core.runner import run_inprocess
 from .report import evaluate
 from .run import run, run_inprocess_to_bag
 
-__all__ = ["GRAPH_RUNS", "QUICK_RUNS", "bench", "graph_rate"]
+__all__ = ["GRAPH_RUNS", "QUICK_RUNS", "Bench", "GraphRate", "GraphRun", "bench", "graph_rate"]
 
 
 def graph_rate(
@@ -27,7 +28,7 @@ def graph_rate(
     affinity: str = "paired",
     sched: str = "batch",
     speed_loop: str = "one_step",
-) -> dict[str, float]:
+) -> dict[str, Any]:
     """Steps/s of a graph engine with recording on, in one run (im_paper, db_mptc): the
     least-squares slope of step against wall time over the /clock samples the launcher sees
     between 20 % and 90 % of the run (start-up and the end excluded). The launcher's /clock
@@ -67,22 +68,78 @@ def graph_rate(
     }
 
 
-#: the graph runs of a full bench: (engine, affinity, sched, speed loop, the figure's key)
+@dataclass(frozen=True)
+class GraphRun:
+    """A graph engine's configuration in a bench: engine, CPU placement, scheduling policy,
+    speed-loop timing, the figure's key, and what it is in words."""
+
+    engine: str
+    affinity: str
+    sched: str
+    speed_loop: str
+    key: str
+    what: str
+
+
+#: the graph runs of a full bench
 GRAPH_RUNS = (
-    ("ros", "paired", "batch", "one_step", "ros_steps_per_s"),  # the defaults
-    ("ros", "paired", "batch", "immediate", "ros_immediate_steps_per_s"),
-    ("ros", "paired", "other", "one_step", "ros_sched_other_steps_per_s"),
-    ("ros", "none", "other", "one_step", "ros_unpinned_steps_per_s"),  # all to the kernel
-    ("composed", "none", "other", "one_step", "composed_steps_per_s"),  # one process
-)
+    GraphRun("ros", "paired", "batch", "one_step", "ros_steps_per_s",
+             "four processes, paired CPUs, SCHED_BATCH, recording on"),  # the defaults
+    GraphRun("ros", "paired", "batch", "immediate", "ros_immediate_steps_per_s",
+             "the same, speed_loop immediate: the controller waits for the speed PI"),
+    GraphRun("ros", "paired", "other", "one_step", "ros_sched_other_steps_per_s",
+             "four processes, paired CPUs, --sched other, recording on"),
+    GraphRun("ros", "none", "other", "one_step", "ros_unpinned_steps_per_s",
+             "four processes, --affinity none --sched other, recording on"),
+    GraphRun("composed", "none", "other", "one_step", "composed_steps_per_s",
+             "one process, recording on"),
+)  # fmt: skip
 #: ``--quick``: the defaults of each engine, short runs (a smoke test of the figures, not a
 #: measurement)
 QUICK_RUNS = (GRAPH_RUNS[0], GRAPH_RUNS[-1])
 
 
-def bench(
-    *, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool = False
-) -> dict[str, Any]:
+@dataclass(frozen=True)
+class GraphRate:
+    """One graph run's throughput (steps/s, None when too few samples gave no slope) and how
+    long it took to start (wall s until its first /clock)."""
+
+    run: GraphRun
+    steps_per_s: float | None
+    startup_s: float
+
+
+@dataclass(frozen=True)
+class Bench:
+    """``bench``: throughput figures of this machine, all from one call (compare them only as
+    ratios within a call: the machine's speed drifts between sessions)."""
+
+    steps: int  #: steps of each in-process run
+    core_steps_per_s: float  #: the in-process loop without recording, median of the repeats
+    core_steps_per_s_runs: list[float]
+    inprocess_recorded_steps_per_s: float  #: the in-process loop writing its bag
+    report_steps_per_s: float  #: reading that bag back and evaluating it (what report does)
+    compute_us_per_step: dict[str, float]  #: median control-law time per strategy
+    real_time_steps_per_s: float
+    graph: list[GraphRate]
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "core_steps_per_s": self.core_steps_per_s,
+            "core_steps_per_s_runs": self.core_steps_per_s_runs,
+            "steps": self.steps,
+            "compute_us_per_step": self.compute_us_per_step,
+            "real_time_steps_per_s": self.real_time_steps_per_s,
+            "inprocess_recorded_steps_per_s": self.inprocess_recorded_steps_per_s,
+            "report_steps_per_s": self.report_steps_per_s,
+        }
+        for g in self.graph:
+            out[g.run.key] = g.steps_per_s
+            out[g.run.key.replace("steps_per_s", "startup_s")] = g.startup_s
+        return out
+
+
+def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool = False) -> Bench:
     """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests).
     ``quick``: one repeat of 2,000 steps and 0.3 s graph runs of the default engines."""
     if quick:
@@ -98,31 +155,33 @@ def bench(
         tr = run_inprocess(sc.with_strategy(name), steps=steps)
         m = compute_metrics(tr, t_start=0.05)
         compute[name] = m.compute_ns_median / 1e3
-    out: dict[str, Any] = {
-        "core_steps_per_s": sorted(rates)[len(rates) // 2],
-        "core_steps_per_s_runs": rates,
-        "steps": steps,
-        "compute_us_per_step": compute,
-        "real_time_steps_per_s": 1.0 / sc.ts,
-    }
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         bag = Path(tmp) / "bench"
         n = run_inprocess_to_bag(sc.with_duration(steps * sc.ts), bag)
-        out["inprocess_recorded_steps_per_s"] = n / (time.perf_counter() - t0)
+        recorded = n / (time.perf_counter() - t0)
         # what `report` does: read the recording back and evaluate it
         t0 = time.perf_counter()
         evaluate(bag)
-        out["report_steps_per_s"] = n / (time.perf_counter() - t0)
+        report_rate = n / (time.perf_counter() - t0)
+    graph = []
     if ros:
-        for engine, affinity, sched, loop, key in QUICK_RUNS if quick else GRAPH_RUNS:
-            g = graph_rate(
-                engine,
-                affinity=affinity,
-                sched=sched,
-                speed_loop=loop,
+        for g in QUICK_RUNS if quick else GRAPH_RUNS:
+            r = graph_rate(
+                g.engine,
+                affinity=g.affinity,
+                sched=g.sched,
+                speed_loop=g.speed_loop,
                 duration=0.3 if quick else 2.0,
             )
-            out[key] = g["steps_per_s"]
-            out[key.replace("steps_per_s", "startup_s")] = g["startup_s"]
-    return out
+            graph.append(GraphRate(g, r["steps_per_s"], r["startup_s"]))
+    return Bench(
+        steps=steps,
+        core_steps_per_s=sorted(rates)[len(rates) // 2],
+        core_steps_per_s_runs=rates,
+        inprocess_recorded_steps_per_s=recorded,
+        report_steps_per_s=report_rate,
+        compute_us_per_step=compute,
+        real_time_steps_per_s=1.0 / sc.ts,
+        graph=graph,
+    )

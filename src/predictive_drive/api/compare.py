@@ -4,16 +4,48 @@ request, their figures overlaid (e.g. the strategies of one scenario)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..core.metrics import Metrics
 from ..errors import ConfigError
 from .report import evaluate
 
-__all__ = ["compare"]
+__all__ = ["Compared", "Comparison", "compare"]
 
 
-def compare(bags: Sequence[str | Path], *, figures: str | Path | None = None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Compared:
+    """One recording of a comparison: its bag, its label in the table, steps and metrics."""
+
+    bag: Path
+    label: str
+    steps: int
+    metrics: Metrics
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """``compare``: the recordings in the order given, and the figures drawn."""
+
+    runs: list[Compared]
+    figures: list[Path] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "runs": [
+                {"bag": str(r.bag), "label": r.label, "steps": r.steps,
+                 "metrics": r.metrics.as_dict()}
+                for r in self.runs
+            ]
+        }  # fmt: skip
+        if self.figures:
+            out["figures"] = [str(p) for p in self.figures]
+        return out
+
+
+def compare(bags: Sequence[str | Path], *, figures: str | Path | None = None) -> Comparison:
     """Each recording's metrics; ``figures``: a folder for the overlaid figures (PNG)."""
     if len(bags) < 2:
         raise ConfigError("compare needs two recordings or more")
@@ -21,15 +53,13 @@ def compare(bags: Sequence[str | Path], *, figures: str | Path | None = None) ->
     labels = [f"{ev.scenario.name} {ev.info.info['strategy']}" for ev in evs]
     if len(set(labels)) < len(labels):  # the same scenario and strategy twice: say which bag
         labels = [f"{lab} ({Path(b).name})" for lab, b in zip(labels, bags)]
-    out: dict[str, Any] = {
-        "runs": [
-            {"bag": str(b), "label": lab, "steps": ev.steps, "metrics": ev.metrics.as_dict()}
-            for b, lab, ev in zip(bags, labels, evs)
-        ]
-    }
+    drawn: list[Path] = []
     if figures is not None:
         from ..reports.figures import Run, compare_figures, save
 
         runs = [Run(ev.trace, ev.scenario, lab) for ev, lab in zip(evs, labels)]
-        out["figures"] = [str(p) for p in save(compare_figures(runs), figures, "compare_")]
-    return out
+        drawn = save(compare_figures(runs), figures, "compare_")
+    return Comparison(
+        [Compared(Path(b), lab, ev.steps, ev.metrics) for b, lab, ev in zip(bags, labels, evs)],
+        drawn,
+    )

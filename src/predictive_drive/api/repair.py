@@ -3,22 +3,38 @@ reindex`` / ``mcap recover`` do); the original file is kept."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..bag import repair_bag
 from ..readback import read_bag
 
-__all__ = ["repair"]
+__all__ = ["Repaired", "repair"]
 
 
-def repair(bag: str | Path) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Repaired:
+    """``repair``: the bag, whether it was rebuilt (or left alone, intact), where the original
+    file is kept, and the messages and whole steps the bag holds now."""
+
+    bag: Path
+    repaired: bool
+    original: Path | None
+    messages: int
+    steps: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "bag": str(self.bag),
+            "repaired": self.repaired,
+            "original": None if self.original is None else str(self.original),
+            "messages": self.messages,
+            "steps": self.steps,
+        }
+
+
+def repair(bag: str | Path) -> Repaired:
     """Repair ``bag`` in place; says what it holds now and where the original went."""
     r = repair_bag(bag)
-    return {
-        "bag": str(r.bag),
-        "repaired": r.original is not None,
-        "original": None if r.original is None else str(r.original),
-        "messages": r.messages,
-        "steps": read_bag(r.bag)[0].steps,
-    }
+    return Repaired(r.bag, r.original is not None, r.original, r.messages, read_bag(r.bag)[0].steps)

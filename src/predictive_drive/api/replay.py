@@ -1,19 +1,23 @@
 """``predictive-drive replay``: a recording published back onto ROS as ``ros2 bag play`` does, on
-the environment's ROS domain, so the user's own nodes and tools receive it."""
+the environment's ROS domain, so the user's own nodes and tools receive it; or fed step by step
+into a controller node (``--into``)."""
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError, GraphError
+
+if TYPE_CHECKING:  # the ros layer imports rclpy: only when a replay is asked for
+    from ..ros.player_node import PlayResult
+    from ..ros.stepper import StepResult
 
 __all__ = ["replay", "replay_into"]
 
 
-def replay(bag: str | Path, **options: Any) -> dict[str, Any]:
+def replay(bag: str | Path, **options: Any) -> PlayResult:
     """Play ``bag`` (options: :class:`~predictive_drive.ros.player_node.PlayOptions`) and say
     what was published, the achieved rate (recorded s per wall s) and the final lag."""
     from ..ros.params import domain_id
@@ -23,16 +27,15 @@ def replay(bag: str | Path, **options: Any) -> dict[str, Any]:
     opts = PlayOptions(**options)
     try:
         with ros_context(domain_id()) as ctx:
-            result = play(bag, opts, context=ctx)
+            return play(bag, opts, context=ctx)
     except KeyboardInterrupt:
         raise GraphError("replay interrupted") from None
-    return {"bag": str(bag), **dataclasses.asdict(result)}
 
 
 def replay_into(
     bag: str | Path, *, node: str = "torque_controller", strategy: str | None = None,
     out: str | Path | None = None,
-) -> dict[str, Any]:  # fmt: skip
+) -> StepResult:  # fmt: skip
     """Feed ``bag`` into a ``node`` process step by step (see
     :mod:`predictive_drive.ros.stepper`) and record the result; says how the new decisions agree
     with the recorded ones, the controller's compute time and the pace."""
@@ -50,14 +53,6 @@ def replay_into(
         )
     target = check_new_bag(out)
     try:
-        r = step(source, target, strategy=strategy)
+        return step(source, target, strategy=strategy)
     except KeyboardInterrupt:
         raise GraphError("replay into the torque controller interrupted") from None
-    return {
-        "bag": str(r.bag),
-        "steps": r.steps,
-        "strategy": r.strategy,
-        "agreement": {"vector": r.vector_agreement, "pulses": r.pulse_agreement},
-        "compute_us_per_step": r.compute_us_per_step,
-        "steps_per_s": r.steps_per_s,
-    }

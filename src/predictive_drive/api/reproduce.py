@@ -4,12 +4,14 @@ studies, every strategy at every load step with and without parameter mismatch."
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
 import tempfile
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,14 +22,161 @@ from ..core.control.mtpa import mtpa_point
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError, PredictiveDriveError
-from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, MTPAStudy
+from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, Column, MTPAStudy
 from .compare import compare
 from .controller_replay import controller_replay
 from .report import evaluate
 from .run import run
 from .sweep import Analysis, Case, Row, run_cases
 
-__all__ = ["mtpa_steps", "reproduce"]
+__all__ = [
+    "MTPAClaim",
+    "MTPARow",
+    "MTPAStudyResult",
+    "PaperTableResult",
+    "Reproduction",
+    "TableRow",
+    "mtpa_steps",
+    "reproduce",
+]
+
+#: the figures of a table row, by metric key (:data:`~..core.metrics.METRICS`)
+TABLE_FIGURES = (
+    "t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "zero_share", "thd",
+    "thd_harmonics", "compute_us_per_step",
+)  # fmt: skip
+
+
+@dataclass
+class TableRow:
+    """One row of a reproduced table: its label, strategy and settings, our ``figures`` and the
+    paper's (``paper``), both by metric key, and the run's bag. With compute ratios, also
+    whether the timing replay decided as recorded (``replay_identical``)."""
+
+    label: str
+    strategy: str
+    settings: dict[str, Any]
+    figures: dict[str, float]
+    paper: dict[str, float]
+    bag: str | None
+    wall_s: float
+    replay_identical: bool | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {
+            "label": self.label,
+            "strategy": self.strategy,
+            "settings": self.settings,
+            **self.figures,
+            "paper": self.paper,
+            "bag": self.bag,
+            "wall_s": self.wall_s,
+        }
+        if self.replay_identical is not None:
+            out["replay_identical"] = self.replay_identical
+        return out
+
+
+@dataclass(frozen=True)
+class Reproduction:
+    """What every reproduction says of itself: the scenario, the engine, the run length if
+    shortened (then not comparable with the paper), the settings applied to every run, the
+    paper's caption and how our figures are computed."""
+
+    scenario: str
+    engine: str
+    duration: float | None
+    settings: dict[str, Any]
+    paper: str
+    how: str
+
+    def head(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario,
+            "engine": self.engine,
+            "duration": self.duration,
+            "settings": self.settings,
+            "paper": self.paper,
+            "how": self.how,
+        }
+
+
+@dataclass(frozen=True)
+class PaperTableResult(Reproduction):
+    """``reproduce`` of a paper's table: every row run again, ours beside the paper's."""
+
+    columns: tuple[Column, ...]
+    rows: list[TableRow]
+    figures: list[Path] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {**self.head(), "rows": [r.as_dict() for r in self.rows]}
+        if self.figures:
+            out["figures"] = [str(p) for p in self.figures]
+        return out
+
+
+@dataclass(frozen=True)
+class MTPARow:
+    """One load step of one run of an MTPA study: the strategy (and injection form), the
+    controller's L_d, L_q factors, and where the current settled (measured) against the true
+    MTPA point."""
+
+    strategy: str
+    form: str | None
+    mismatch: dict[str, float]
+    load_torque: float
+    theta_deg: float
+    theta_mtpa_deg: float
+    i_s: float
+    i_s_mtpa: float
+    i_s_zero_d: float
+    settle_s: float
+    t_start: float
+    t_end: float
+    bag: str | None
+
+    @property
+    def exact(self) -> bool:
+        """The controller's inductances equal the plant's."""
+        return self.mismatch["l_d"] == 1.0 and self.mismatch["l_q"] == 1.0
+
+
+@dataclass(frozen=True)
+class MTPAClaim:
+    """Paper 002's claims at one load, checked on the corrected injection at exact parameters:
+    settling under a second, and less current than i_d = 0 (measured, against the
+    measurement's resolution): ``less_current_than_zero_d`` is confirmed, refuted or not
+    resolved."""
+
+    load_torque: float
+    settle_s: float
+    settles_under_1_s: bool
+    i_s: float
+    i_s_zero_d_measured: float
+    saving_vs_zero_d: float
+    saving_possible: float
+    resolution: float
+    less_current_than_zero_d: str
+
+
+@dataclass(frozen=True)
+class MTPAStudyResult(Reproduction):
+    """``reproduce`` of an MTPA study: every run's load steps, and the paper's claims."""
+
+    rows: list[MTPARow]
+    claims: list[MTPAClaim]
+    figures: list[Path] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {
+            **self.head(),
+            "rows": [dataclasses.asdict(r) for r in self.rows],
+            "claims": [dataclasses.asdict(c) for c in self.claims],
+        }
+        if self.figures:
+            out["figures"] = [str(p) for p in self.figures]
+        return out
 
 
 def _runs(
@@ -55,9 +204,7 @@ def _runs(
                 r = run(path, strategy=c.strategy, engine=engine, out=c.bag, duration=duration)
             ev = evaluate(r.bag)
             extra = analysis(ev.trace, ev.scenario) if analysis is not None else {}
-            rows.append(
-                Row(c.strategy, c.settings, ev.metrics.as_dict(), None, r.wall_s, c.bag, extra)
-            )
+            rows.append(Row(c.strategy, c.settings, ev.metrics, None, r.wall_s, c.bag, extra))
     for row in rows:
         if row.error:
             raise PredictiveDriveError(
@@ -67,23 +214,21 @@ def _runs(
     return rows
 
 
-def _table_row(row: Row) -> dict[str, Any]:
-    m = row.metrics or {}
+def _figures(row: Row) -> dict[str, float]:
+    """A run's figures for a table row, by metric key."""
+    m = row.metrics
+    assert m is not None  # a failed case failed the reproduction (_runs)
     return {
-        "strategy": row.strategy,
-        "settings": row.settings,
-        "t_rmse": m["t_rmse"],
-        "psi_rmse": m["psi_rmse"],
-        "f_ave_hz": m["f_ave_hz"],
-        "cal_ave": m["cal_ave"],
-        "deadbeat_share": m["deadbeat_share"],
-        "zero_share": m["utilization"][0],
-        "thd": m["thd"],
-        "thd_harmonics": m["thd_harmonics"],
-        "compute_us_per_step": m["compute_ns_median"] / 1e3,
-        "compute_us_mean": m["compute_ns_mean"] / 1e3,
-        "bag": row.bag,
-        "wall_s": row.wall_s,
+        "t_rmse": m.t_rmse,
+        "psi_rmse": m.psi_rmse,
+        "f_ave_hz": m.f_ave_hz,
+        "cal_ave": m.cal_ave,
+        "deadbeat_share": m.deadbeat_share,
+        "zero_share": m.utilization[0],
+        "thd": m.thd,
+        "thd_harmonics": m.thd_harmonics,
+        "compute_us_per_step": m.compute_ns_median / 1e3,
+        "compute_us_mean": m.compute_ns_mean / 1e3,
     }
 
 
@@ -101,7 +246,7 @@ def reproduce(
     duration: float | None = None,
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
-) -> dict[str, Any]:
+) -> PaperTableResult | MTPAStudyResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study. ``duration`` shortens every run (a
     quick look; the figures then do not compare with the paper's). ``figures``: a folder for
@@ -109,7 +254,7 @@ def reproduce(
     ``{"speed_pi.speed_loop": "immediate"}``), besides each row's own."""
     settings = dict(settings or {})
     if scenario in MTPA_STUDIES:
-        out = reproduce_mtpa(
+        study = reproduce_mtpa(
             scenario,
             engine=engine,
             out_root=out_root,
@@ -117,10 +262,11 @@ def reproduce(
             duration=duration,
             settings=settings,
         )
-        if figures is not None:  # the runs at exact parameters, one per strategy and form
-            bags = list(dict.fromkeys(r["bag"] for r in out["rows"] if _exact(r, r["strategy"])))
-            out["figures"] = compare(bags, figures=figures)["figures"]
-        return out
+        if figures is None:
+            return study
+        # the runs at exact parameters, one per strategy and form
+        bags = list(dict.fromkeys(str(r.bag) for r in study.rows if r.exact))
+        return dataclasses.replace(study, figures=compare(bags, figures=figures).figures)
     if scenario not in PAPER_TABLES:
         raise ConfigError(
             f"reproduce: no paper table for {scenario!r}; available: "
@@ -129,38 +275,34 @@ def reproduce(
     table = PAPER_TABLES[scenario]
     stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"
     cases = []
-    for row in table.rows:
-        tag = re.sub(r"[^A-Za-z0-9_.-]", "", row.name.replace(" ", "_"))
+    for spec in table.rows:
+        tag = re.sub(r"[^A-Za-z0-9_.-]", "", spec.name.replace(" ", "_"))
         bag = _bag(out_root, f"reproduce_{scenario}_{tag}_{stamp}")
-        cases.append(Case(row.strategy, {**settings, **row.settings}, bag))
+        cases.append(Case(spec.strategy, {**settings, **spec.settings}, bag))
     runs = _runs(scenario, cases, engine=engine, duration=duration, jobs=jobs)
-    rows = [_table_row(r) for r in runs]
-    for row, spec in zip(rows, table.rows):
-        row["paper"] = spec.paper
-        row["label"] = spec.name
+    rows = [
+        TableRow(spec.name, r.strategy, r.settings, _figures(r), spec.paper, r.bag, r.wall_s)
+        for r, spec in zip(runs, table.rows)
+    ]
     if table.compute_ratios:
         # in this process, after the runs: timing must not share the cores. Conventional first:
         # the ratios are relative to it
-        order = sorted(rows, key=lambda r: r["strategy"] != "mptc")
-        times = controller_replay([r["bag"] for r in order], repeats=repeats)
+        order = sorted(rows, key=lambda r: r.strategy != "mptc")
+        times = controller_replay([str(r.bag) for r in order], repeats=repeats)
         for r, t in zip(order, times):
-            r["replay_identical"] = t["identical"]
-            r["compute_ns_hot"] = t["hot_ns"]
-            r["compute_ratio"] = t["hot_ratio"]
-            r["compute_ns_in_loop"] = t["loop_ns"]
-            r["compute_ratio_in_loop"] = t["loop_ratio"]
-    out = {
-        "scenario": scenario,
-        "engine": engine,
-        "duration": duration,
-        "settings": settings,
-        "paper": table.caption,
-        "how": table.how,
-        "rows": rows,
-    }
+            r.replay_identical = t["identical"]
+            r.figures.update(
+                compute_ns_hot=t["hot_ns"],
+                compute_ratio=t["hot_ratio"],
+                compute_ns_in_loop=t["loop_ns"],
+                compute_ratio_in_loop=t["loop_ratio"],
+            )
+    drawn = []
     if figures is not None:
-        out["figures"] = compare([r["bag"] for r in rows], figures=figures)["figures"]
-    return out
+        drawn = compare([str(r.bag) for r in rows], figures=figures).figures
+    return PaperTableResult(
+        scenario, engine, duration, settings, table.caption, table.how, table.columns, rows, drawn
+    )
 
 
 def _mtpa_runs(study: MTPAStudy) -> list[tuple[str, dict[str, Any], dict[str, float]]]:
@@ -220,7 +362,7 @@ def reproduce_mtpa(
     jobs: int | None = None,
     duration: float | None = None,
     settings: dict[str, Any] | None = None,
-) -> dict[str, Any]:
+) -> MTPAStudyResult:
     """An MTPA study (:data:`~predictive_drive.reports.papers.MTPA_STUDIES`): a sweep of the
     strategies over the controller-side inductance mismatches, one row per run and load step;
     the paper's claims checked per load where it makes any."""
@@ -237,53 +379,44 @@ def reproduce_mtpa(
         mismatches.append(mismatch)
     runs = _runs(scenario, cases, engine=engine, duration=duration, jobs=jobs, analysis=mtpa_steps)
     rows = [
-        {
-            "strategy": r.strategy,
-            "form": r.extra["form"],
-            "mismatch": mismatch,
+        MTPARow(
+            strategy=r.strategy,
+            form=r.extra["form"],
+            mismatch=mismatch,
             **step,
-            "bag": r.bag,
-        }
+            bag=r.bag,
+        )
         for r, mismatch in zip(runs, mismatches)
         for step in r.extra["load_steps"]
     ]
-    return {
-        "scenario": scenario,
-        "engine": engine,
-        "duration": duration,
-        "settings": settings or {},
-        "paper": study.caption,
-        "how": study.how,
-        "rows": rows,
-        "claims": _check_claims(study, rows),
-    }
-
-
-def _exact(row: dict[str, Any], strategy: str, form: str | None = None) -> bool:
-    m = row["mismatch"]
-    return (
-        row["strategy"] == strategy
-        and m["l_d"] == 1.0
-        and m["l_q"] == 1.0
-        and (form is None or row["form"] == form)
+    return MTPAStudyResult(
+        scenario=scenario,
+        engine=engine,
+        duration=duration,
+        settings=settings or {},
+        paper=study.caption,
+        how=study.how,
+        rows=rows,
+        claims=_check_claims(study, rows),
     )
 
 
-def _check_claims(study: MTPAStudy, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def _check_claims(study: MTPAStudy, rows: list[MTPARow]) -> list[MTPAClaim]:
     """Per load: does the corrected injection settle under a second, and does it draw less
     current than i_d = 0 (both measured, same scenario, exact parameters)? The current saving is
     judged against the measurement's resolution: how far the i_d = 0 run's measured |i_s| lies
     from the model's, at that load."""
     if not study.claims:
         return []
-    zero = {r["load_torque"]: r for r in rows if _exact(r, "foc_zero_d")}
+    zero = {r.load_torque: r for r in rows if r.exact and r.strategy == "foc_zero_d"}
     out = []
     for r in rows:
-        if not _exact(r, "foc_injection", "corrected") or r["load_torque"] not in zero:
+        corrected = r.strategy == "foc_injection" and r.form == "corrected"
+        if not (r.exact and corrected) or r.load_torque not in zero:
             continue
-        z = zero[r["load_torque"]]
-        saving = 1.0 - r["i_s"] / z["i_s"]
-        resolution = abs(z["i_s"] / z["i_s_zero_d"] - 1.0)
+        z = zero[r.load_torque]
+        saving = 1.0 - r.i_s / z.i_s
+        resolution = abs(z.i_s / z.i_s_zero_d - 1.0)
         verdict = (
             "confirmed"
             if saving > resolution
@@ -292,16 +425,16 @@ def _check_claims(study: MTPAStudy, rows: list[dict[str, Any]]) -> list[dict[str
             else "not resolved"
         )
         out.append(
-            {
-                "load_torque": r["load_torque"],
-                "settle_s": r["settle_s"],
-                "settles_under_1_s": r["settle_s"] < 1.0,
-                "i_s": r["i_s"],
-                "i_s_zero_d_measured": z["i_s"],
-                "saving_vs_zero_d": saving,
-                "saving_possible": 1.0 - r["i_s_mtpa"] / r["i_s_zero_d"],
-                "resolution": resolution,
-                "less_current_than_zero_d": verdict,
-            }
+            MTPAClaim(
+                load_torque=r.load_torque,
+                settle_s=r.settle_s,
+                settles_under_1_s=r.settle_s < 1.0,
+                i_s=r.i_s,
+                i_s_zero_d_measured=z.i_s,
+                saving_vs_zero_d=saving,
+                saving_possible=1.0 - r.i_s_mtpa / r.i_s_zero_d,
+                resolution=resolution,
+                less_current_than_zero_d=verdict,
+            )
         )
     return out

@@ -20,15 +20,18 @@ from ..errors import ConfigError, Interrupted
 from ..live import LiveView, check_port
 from ..readback import bag_status
 from ..recording import RunRecorder, bag_info, default_bag_dir
-from .report import details_of, evaluate
+from .report import RecordingDetails, details_of, evaluate
 
 __all__ = ["ENGINES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
 
 ENGINES = ("ros", "composed", "inprocess")
 
 
-@dataclass
+@dataclass(frozen=True)
 class RunResult:
+    """``run``: what ran, where it is recorded, how long it took (wall s), and the recording's
+    metrics and details (evaluated from the bag, as ``report`` would)."""
+
     scenario: str
     strategy: str
     engine: str
@@ -36,10 +39,11 @@ class RunResult:
     bag: Path
     wall_s: float
     metrics: Metrics
-    details: dict[str, Any]  #: strategies, parameter events, outcome, load steps (see report)
+    details: RecordingDetails
+    window_note: str = ""
 
     def as_dict(self) -> dict[str, Any]:
-        out = {
+        return {
             "scenario": self.scenario,
             "strategy": self.strategy,
             "engine": self.engine,
@@ -47,9 +51,9 @@ class RunResult:
             "bag": str(self.bag),
             "wall_s": self.wall_s,
             "metrics": self.metrics.as_dict(),
-            **self.details,
+            **self.details.as_dict(),
+            "window_note": self.window_note,
         }
-        return out
 
 
 def switch_steps(sc: Scenario, switches: Sequence[tuple[float, str]]) -> list[tuple[int, str]]:
@@ -169,4 +173,14 @@ def run(
         raise Interrupted(f"interrupted: {bag_status(bag).describe()} (of {n} planned)") from None
     wall = time.perf_counter() - t0
     ev = evaluate(bag)
-    return RunResult(sc.name, sc.strategy, engine, ev.steps, bag, wall, ev.metrics, details_of(ev))
+    return RunResult(
+        sc.name,
+        sc.strategy,
+        engine,
+        ev.steps,
+        bag,
+        wall,
+        ev.metrics,
+        details_of(ev),
+        ev.window_note,
+    )

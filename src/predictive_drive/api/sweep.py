@@ -28,6 +28,7 @@ from typing import Any
 
 from ..config import apply_settings, load_scenario_text, resolve_scenario_path
 from ..core.control import strategy_names
+from ..core.metrics import Metrics
 from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
 from ..core.trace import Trace
@@ -62,9 +63,11 @@ class Case:
 
 @dataclass
 class Row:
+    """One case's outcome: its strategy and settings, and its metrics or its error."""
+
     strategy: str
     settings: dict[str, Any]
-    metrics: dict[str, Any] | None = None
+    metrics: Metrics | None = None
     error: str | None = None
     wall_s: float = math.nan
     bag: str | None = None
@@ -74,7 +77,7 @@ class Row:
         out = {
             "strategy": self.strategy,
             "settings": self.settings,
-            "metrics": self.metrics,
+            "metrics": None if self.metrics is None else self.metrics.as_dict(),
             "error": self.error,
             "wall_s": self.wall_s,
         }
@@ -175,7 +178,7 @@ def run_case(
         else:
             trace = run_inprocess(sc)
             metrics = metrics_of(trace, sc)
-        row.metrics = metrics.as_dict()
+        row.metrics = metrics
         if analysis is not None:
             row.extra = analysis(trace, sc)
     except (PredictiveDriveError, ArithmeticError, ValueError) as e:
@@ -311,7 +314,7 @@ def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
     header = ["strategy", *keys, *COLUMNS, *(f"util_v{i}" for i in range(7)), "error", "wall_s"]
     out = []
     for r in rows:
-        m = r.metrics or {}
+        m = r.metrics.as_dict() if r.metrics is not None else {}
         util = list(m.get("utilization", [math.nan] * 7)) + [math.nan] * 7
         out.append(
             [

@@ -1,10 +1,18 @@
-"""Run metrics from a :class:`Trace` (SPEC §6; paper definitions)."""
+"""Run metrics from a :class:`Trace`, as the papers define them (paper 001 eq 7-9; the
+definitions and their readings are in docs/physics.md, "Metrics").
+
+Each metric says once how it is shown — title, unit, scale and format — as field metadata of
+:class:`Metrics` (:func:`metric`); :data:`METRICS` holds them with the figures derived from a run
+elsewhere (the zero-vector share, the compute-time ratios), so the command line, the sweep
+tables, the figures and the paper tables format a metric from one place.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -12,7 +20,64 @@ from .signals import COMMAND_INDEX, REFERENCE_INDEX, STATE_INDEX
 from .timebase import every_steps, step_index
 from .trace import Trace
 
-__all__ = ["Metrics", "Spectrum", "compute_metrics", "phase_a_spectrum", "step_window"]
+__all__ = [
+    "METRICS",
+    "Metric",
+    "Metrics",
+    "Spectrum",
+    "compute_metrics",
+    "metric",
+    "phase_a_spectrum",
+    "step_window",
+]
+
+_KEY = "predictive_drive.metric"
+
+
+@dataclass(frozen=True)
+class Metric:
+    """How a figure of a run is shown: ``title``, display ``unit`` ('' for a pure number),
+    ``scale`` (the value times it is in the unit: 1e-3 shows Hz as kHz), ``fmt`` (a format spec)
+    and what it is (``description``)."""
+
+    title: str
+    unit: str = ""
+    scale: float = 1.0
+    fmt: str = ".4f"
+    description: str = ""
+
+    def format(self, value: float | None) -> str:
+        """The value in the display unit, '-' where there is none (None or NaN)."""
+        if value is None or value != value:
+            return "-"
+        shown = value * self.scale
+        return format(round(shown) if self.fmt.endswith("d") else shown, self.fmt)
+
+    @property
+    def heading(self) -> str:
+        """Title and unit, for a table's head: ``T_RMSE N·m``."""
+        return f"{self.title} {self.unit}".rstrip()
+
+    @property
+    def axis(self) -> str:
+        """Title and unit, for a figure's axis: ``T_RMSE (N·m)``."""
+        return f"{self.title} ({self.unit})" if self.unit else self.title
+
+
+def metric(
+    title: str,
+    unit: str = "",
+    *,
+    scale: float = 1.0,
+    fmt: str = ".4f",
+    description: str = "",
+    default: Any = dataclasses.MISSING,
+) -> Any:
+    """A :class:`Metrics` field with the :class:`Metric` that shows it."""
+    m = Metric(title, unit, scale, fmt, description)
+    if default is dataclasses.MISSING:
+        return dataclasses.field(metadata={_KEY: m})
+    return dataclasses.field(default=default, metadata={_KEY: m})
 
 
 @dataclass(frozen=True)
@@ -30,28 +95,67 @@ class Metrics:
     :class:`Spectrum`); NaN without a window.
     """
 
-    t_start: float
-    t_end: float
-    steps: int
-    t_rmse: float
-    psi_rmse: float
-    f_ave_hz: float
-    cal_ave: float
-    utilization: tuple[float, ...]
-    deadbeat_share: float
-    compute_ns_mean: float
-    compute_ns_median: float
-    speed_rmse: float
-    compute_ns_median_by_strategy: dict[str, float]
-    thd: float = math.nan
-    thd_harmonics: float = math.nan
-    thd_cycles: int = 0
-    thd_fundamental_hz: float = math.nan
+    t_start: float = metric("window from", "s", fmt=".4g")
+    t_end: float = metric("window to", "s", fmt=".4g")
+    steps: int = metric("steps", fmt="d", description="steps in the metrics window")
+    t_rmse: float = metric(
+        "T_RMSE", "N·m", description="sqrt(mean((T_e - T*)^2)), true torque at k vs T* used at k"
+    )
+    psi_rmse: float = metric(
+        "psi_RMSE", "Wb", fmt=".5f", description="sqrt(mean((|psi_s| - psi*)^2)), true flux"
+    )
+    f_ave_hz: float = metric(
+        "f_ave", "kHz", scale=1e-3, fmt=".3f",
+        description="device transitions / (6 t), 2 per leg change",
+    )  # fmt: skip
+    cal_ave: float = metric("Cal_ave", fmt=".2f", description="vector predictions per step")
+    utilization: tuple[float, ...] = metric(
+        "vectors", "%", scale=100.0, fmt=".1f", description="share of steps choosing V0..V6"
+    )
+    deadbeat_share: float = metric(
+        "deadbeat", "%", scale=100.0, fmt=".2f", description="steps with 0 < t_u < Ts"
+    )
+    compute_ns_mean: float = metric(
+        "compute mean", "µs/step", scale=1e-3, fmt=".2f", description="mean, control law only"
+    )
+    compute_ns_median: float = metric(
+        "compute", "µs/step", scale=1e-3, fmt=".2f", description="median, control law only"
+    )
+    speed_rmse: float = metric("speed_RMSE", "rad/s", fmt=".3f", description="omega_m vs omega_m*")
+    compute_ns_median_by_strategy: dict[str, float] = metric(
+        "compute", "µs/step", scale=1e-3, fmt=".2f", description="median per strategy"
+    )
+    thd: float = metric(
+        "THD_a", "%", scale=100.0, fmt=".2f",
+        description="phase-a distortion over whole cycles, every line up to Nyquist",
+        default=math.nan,
+    )  # fmt: skip
+    thd_harmonics: float = metric(
+        "THD_a harmonics", "%", scale=100.0, fmt=".2f",
+        description="phase-a distortion of the integer harmonics alone", default=math.nan,
+    )  # fmt: skip
+    thd_cycles: int = metric("THD cycles", fmt="d", default=0)
+    thd_fundamental_hz: float = metric("THD fundamental", "Hz", fmt=".1f", default=math.nan)
 
-    def as_dict(self) -> dict[str, object]:
+    def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["utilization"] = list(self.utilization)
         return d
+
+
+#: how each figure of a run is shown: the :class:`Metrics` fields, and the figures derived from
+#: a run elsewhere (a paper table's zero-vector share, the compute times of a controller replay)
+METRICS: dict[str, Metric] = {
+    **{f.name: f.metadata[_KEY] for f in dataclasses.fields(Metrics)},
+    "zero_share": Metric("V0", "%", 100.0, ".1f", "share of steps choosing the zero vector"),
+    "compute_us_per_step": Metric("compute", "µs/step", 1.0, ".2f", "median, control law only"),
+    "compute_ratio": Metric(
+        "compute ratio", "", 1.0, ".3f", "decision time relative to conventional MPTC"
+    ),
+    "compute_ns_hot": Metric(
+        "compute", "µs/step", 1e-3, ".2f", "decision time per step in a tight replay loop"
+    ),
+}
 
 
 def step_window(trace: Trace, t_start: float, t_end: float) -> tuple[int, int]:

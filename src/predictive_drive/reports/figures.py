@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.metrics import phase_a_spectrum
+from ..core.metrics import METRICS, phase_a_spectrum
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
@@ -204,14 +204,8 @@ def compare_figures(runs: Sequence[Run]) -> dict[str, Any]:
     return figs
 
 
-#: the metrics a sweep's figures plot: (key, label, scale)
-SWEEP_METRICS = (
-    ("t_rmse", "T_RMSE (N·m)", 1.0),
-    ("psi_rmse", "ψ_RMSE (Wb)", 1.0),
-    ("f_ave_hz", "f_ave (kHz)", 1e-3),
-    ("thd", "THD_a (%)", 100.0),
-    ("speed_rmse", "speed RMSE (rad/s)", 1.0),
-)
+#: the metrics a sweep's figures plot (their axes from :data:`~..core.metrics.METRICS`)
+SWEEP_METRICS = ("t_rmse", "psi_rmse", "f_ave_hz", "thd", "speed_rmse")
 
 
 def _sweep_x(value: Any) -> float:
@@ -227,7 +221,7 @@ def sweep_figures(rows: Sequence[Any], keys: Sequence[str]) -> dict[str, Any]:
     plt = _pyplot()
     ok = [r for r in rows if r.error is None and r.metrics]
     figs: dict[str, Any] = {}
-    metrics = [m for m in SWEEP_METRICS if any(math.isfinite(r.metrics[m[0]]) for r in ok)]
+    metrics = [m for m in SWEEP_METRICS if any(math.isfinite(getattr(r.metrics, m)) for r in ok)]
     if not metrics:
         return figs  # no run finished: nothing to draw
     for key in keys:
@@ -241,16 +235,17 @@ def sweep_figures(rows: Sequence[Any], keys: Sequence[str]) -> dict[str, Any]:
         for r in ok:
             others = ", ".join(f"{k.rsplit('.', 1)[-1]}={r.settings[k]}" for k in keys if k != key)
             groups.setdefault(r.strategy + (f" ({others})" if others else ""), []).append(r)
-        for ax, (name, label, scale) in zip(axes, metrics):
+        for ax, name in zip(axes, metrics):
+            shown = METRICS[name]
             for glabel, group in groups.items():
                 group = sorted(group, key=lambda r: xs[id(r)])
                 ax.plot(
                     [xs[id(r)] for r in group],
-                    [scale * r.metrics[name] for r in group],
+                    [shown.scale * getattr(r.metrics, name) for r in group],
                     marker="o",
                     label=glabel,
                 )
-            ax.set_ylabel(label)
+            ax.set_ylabel(shown.axis)
             ax.grid(True, alpha=0.3)
         axes[-1].set_xlabel(key + (" (factor)" if any(
             isinstance(r.settings[key], str) for r in ok) else ""))  # fmt: skip

@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..core.metrics import METRICS, Metric
+
 __all__ = [
     "PAPER_000_TABLE2",
     "PAPER_001_TABLE1",
@@ -100,13 +102,21 @@ class PaperRow:
 
 @dataclass(frozen=True)
 class Column:
-    """A column of a reproduced table: ours and the paper's figure of ``key``, times ``scale``,
-    printed with ``fmt``."""
+    """A column of a reproduced table: ours and the paper's figure of metric ``key``, shown as
+    :data:`~predictive_drive.core.metrics.METRICS` says, under the paper's own name ``title``
+    where it has one (paper 001 says T_rip for T_RMSE)."""
 
-    title: str
     key: str
-    scale: float = 1.0
-    fmt: str = ".4f"
+    title: str = ""
+
+    @property
+    def metric(self) -> Metric:
+        return METRICS[self.key]
+
+    @property
+    def heading(self) -> str:
+        m = self.metric
+        return f"{self.title} {m.unit}".rstrip() if self.title else m.heading
 
 
 @dataclass(frozen=True)
@@ -128,12 +138,12 @@ PAPER_TABLES: dict[str, PaperTable] = {
         "implementation of the same SPEC got 0.230.",
         tuple(PaperRow(s, {}, v) for s, v in PAPER_000_TABLE2.items()),
         (
-            Column("T_RMSE N·m", "t_rmse", 1.0, ".4f"),
-            Column("psi_RMSE Wb", "psi_rmse", 1.0, ".5f"),
-            Column("deadbeat %", "deadbeat_share", 100.0, ".2f"),
-            Column("f_ave kHz", "f_ave_hz", 1e-3, ".3f"),
-            Column("Cal_ave", "cal_ave", 1.0, ".2f"),
-            Column("µs/step", "compute_us_per_step", 1.0, ".2f"),
+            Column("t_rmse"),
+            Column("psi_rmse"),
+            Column("deadbeat_share"),
+            Column("f_ave_hz"),
+            Column("cal_ave"),
+            Column("compute_us_per_step"),
         ),
     ),
     "spmsm_analysis": PaperTable(
@@ -155,11 +165,11 @@ PAPER_TABLES: dict[str, PaperTable] = {
             if th is not None
         ),
         (
-            Column("T_rip N·m", "t_rmse", 1.0, ".4f"),
-            Column("psi_rip Wb", "psi_rmse", 1.0, ".4f"),
-            Column("Cal_ave", "cal_ave", 1.0, ".2f"),
-            Column("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
-            Column("V0 %", "zero_share", 100.0, ".1f"),
+            Column("t_rmse", "T_rip"),
+            Column("psi_rmse", "psi_rip"),
+            Column("cal_ave"),
+            Column("f_ave_hz"),
+            Column("zero_share"),
         ),
     ),
     "ipmsm_validation": PaperTable(
@@ -177,15 +187,15 @@ PAPER_TABLES: dict[str, PaperTable] = {
         "gains are assumed (see the scenario file).",
         tuple(PaperRow(s, {}, v) for s, v in PAPER_001_TABLE9.items()),
         (
-            Column("T_rip N·m", "t_rmse", 1.0, ".4f"),
-            Column("psi_rip Wb", "psi_rmse", 1.0, ".4f"),
-            Column("THD %", "thd", 100.0, ".2f"),
-            Column("(harm.)", "thd_harmonics", 100.0, ".2f"),
-            Column("Cal_ave", "cal_ave", 1.0, ".2f"),
-            Column("f_ave kHz", "f_ave_hz", 1e-3, ".2f"),
-            Column("V0 %", "zero_share", 100.0, ".2f"),
-            Column("compute ratio", "compute_ratio", 1.0, ".3f"),
-            Column("µs/step", "compute_ns_hot", 1e-3, ".2f"),
+            Column("t_rmse", "T_rip"),
+            Column("psi_rmse", "psi_rip"),
+            Column("thd"),
+            Column("thd_harmonics", "(harm.)"),
+            Column("cal_ave"),
+            Column("f_ave_hz"),
+            Column("zero_share"),
+            Column("compute_ratio"),
+            Column("compute_ns_hot"),
         ),
         compute_ratios=True,
     ),

@@ -66,7 +66,7 @@ def run_graph(
     bag = check_new_bag(bag).resolve()
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
-    overrides = {node_name(n): dict(shared) for n in NODES}
+    overrides: dict[str, dict[str, Any]] = {node_name(n): dict(shared) for n in NODES}
     overrides[node_name("torque_controller")]["strategy"] = sc.strategy
     overrides[node_name("metrics_logger")].update(
         strategy=sc.strategy,

@@ -4,6 +4,7 @@ running metrics on /diagnostics, closes the bag cleanly however the run ends."""
 
 from __future__ import annotations
 
+import functools
 import sys
 import time
 from collections.abc import Callable
@@ -101,10 +102,10 @@ class MetricsLoggerNode(WatchedNode):
         }
         # tool topics first: the plant starts once it sees this node's /drive/state subscription
         self.subs = [
-            self.subscription(key, lambda d, key=key: self.on_tool(key, d))
+            self.subscription(key, functools.partial(self.on_tool, key))
             for key in ("clock", "joint_states")
         ] + [
-            self.subscription(rec, lambda d, rec=rec: self.on_record(rec, d))
+            self.subscription(rec, functools.partial(self.on_record, rec))
             for rec in ("state", "reference", "command")
         ]
         # rclpy publishes parameter events over DDS, never through a LocalBus

@@ -10,6 +10,7 @@ achieved rate and final lag. ``rate`` and ``paused`` are live parameters of ``/d
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from collections.abc import Iterator
@@ -70,15 +71,21 @@ class PlayOptions:
 
 @dataclass
 class PlayResult:
-    """What was published (per topic as it went out), how fast against the recording's pace,
-    and how far behind it the last message went (s of recorded time; 0 when on time)."""
+    """``replay``: what was published of ``bag`` (per topic as it went out, remaps applied), the
+    achieved rate (recorded s per wall s), how far behind the recording's pace the last message
+    and the latest one went (s of recorded time; 0 when on time), the wall time and the passes
+    (``--loop``)."""
 
+    bag: Path
     published: dict[str, int]
     achieved_rate: float
     lag_s: float
     max_lag_s: float
     wall_s: float
     passes: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "bag": str(self.bag)}
 
 
 def qos_of(recorded: list[dict[str, Any]]) -> QoSProfile:
@@ -117,6 +124,9 @@ class PlayerNode(Node):
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self.changed = False
+
+    def destroy_node(self) -> None:  # rclpy leaves it unannotated (see node_base.DriveNode)
+        super().destroy_node()  # type: ignore[no-untyped-call]
 
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
         for p in params:
@@ -185,6 +195,7 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
     first_ns = last_ns = None
     clock = _PlayClock(node.rate, node.paused)
     next_service = next_clock = time.perf_counter()
+    clock_period = 1.0 / options.clock_hz if options.clock_hz is not None else 0.0
     said_behind = 0.0
     try:
         while True:
@@ -207,7 +218,7 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
                         next_service = time.perf_counter() + SERVICE_PERIOD
                     if node.clock_pub is not None and wall >= next_clock and not clock.paused:
                         node.clock_pub.publish(encode_clock(start_ns / NS + clock.now()))
-                        next_clock = wall + 1.0 / options.clock_hz  # type: ignore[operator]
+                        next_clock = wall + clock_period
                     if not clock.paused and clock.now() >= due:
                         break
                 node.pubs[topic].publish(data)
@@ -229,6 +240,7 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
         running = clock.running()
         span = ((last_ns or 0) - (first_ns or 0)) / NS * passes
         return PlayResult(
+            bag=Path(bag),
             published=published,
             achieved_rate=span / running if running > 0 else float("nan"),
             lag_s=lag,

@@ -41,8 +41,9 @@ COMMAND_TIMEOUT = 10.0
 
 @dataclass(frozen=True)
 class StepResult:
-    """A lock-step replay: the new bag, steps, the share of steps whose command has the recorded
-    vector and the recorded pulses, the new strategy's compute time, and the pace."""
+    """``replay --into``: the new bag, its steps, the strategy replayed into, the share of steps
+    whose new command has the recorded vector and the recorded pulses, the controller's compute
+    time per step (median) and the pace."""
 
     bag: Path
     steps: int
@@ -51,6 +52,16 @@ class StepResult:
     pulse_agreement: float
     compute_us_per_step: float
     steps_per_s: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "bag": str(self.bag),
+            "steps": self.steps,
+            "strategy": self.strategy,
+            "agreement": {"vector": self.vector_agreement, "pulses": self.pulse_agreement},
+            "compute_us_per_step": self.compute_us_per_step,
+            "steps_per_s": self.steps_per_s,
+        }
 
 
 def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -> StepResult:
@@ -101,7 +112,7 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
         try:
 
             def matched() -> bool:
-                return (
+                return bool(
                     sub.get_publisher_count() > 0
                     and pub_state.get_subscription_count() > 0
                     and pub_ref.get_subscription_count() > 0

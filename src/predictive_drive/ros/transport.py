@@ -42,7 +42,7 @@ def qos(q: Qos) -> QoSProfile:
 def executor(context: Any = None) -> Any:
     """EventsExecutor (about 3x faster per hop than the default here). Always spin it with a finite
     timeout: in these wheels spin()/spin_once() without one never runs callbacks."""
-    from rclpy.experimental import EventsExecutor
+    from rclpy.experimental.events_executor import EventsExecutor
 
     return EventsExecutor(context=context)
 
@@ -53,13 +53,14 @@ def ros_context(domain: int) -> Iterator[Any]:
     (a tool's process: the launcher's watch, the player, the stepper, ``param``)."""
     import rclpy
     from rclpy.context import Context
+    from rclpy.utilities import try_shutdown
 
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain)
     try:
         yield ctx
     finally:
-        rclpy.try_shutdown(context=ctx)
+        try_shutdown(context=ctx)
 
 
 @contextmanager
@@ -148,7 +149,7 @@ class Outlet:
             self.pub.publish(data)
 
     def get_subscription_count(self) -> int:
-        return len(self._local) + self.pub.get_subscription_count()
+        return len(self._local) + int(self.pub.get_subscription_count())
 
     def wait_for_all_acked(self, timeout: Any) -> bool:
         return bool(self.pub.wait_for_all_acked(timeout))

@@ -1,0 +1,59 @@
+"""``predictive-drive bench``: throughput figures of this machine."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..api.bench import bench
+from .common import refuse, say_json
+
+HELP = "throughput figures of this machine (compare them only as ratios within one call)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--repeats", type=int, help="repeats of the core loop (median; default 5)")
+    p.add_argument("--steps", type=int, help="steps of each in-process run (default 20000)")
+    p.add_argument("--no-ros", action="store_true", help="skip the graph engines")
+    p.add_argument(
+        "--quick", action="store_true", help="short runs: a smoke test, not a measurement"
+    )
+
+
+def main(a: argparse.Namespace) -> int:
+    if a.quick:
+        refuse(a, "sets what --quick sets already (1 repeat of 2,000 steps)", "repeats", "steps")
+    d = bench(
+        repeats=5 if a.repeats is None else a.repeats,
+        steps=20000 if a.steps is None else a.steps,
+        ros=not a.no_ros,
+        quick=a.quick,
+    )
+    if a.json:
+        return say_json(d)
+    rt = d.real_time_steps_per_s
+    print(
+        f"core in-process loop (im_paper, db_mptc, {d.steps} steps, median of "
+        f"{len(d.core_steps_per_s_runs)}): {d.core_steps_per_s:,.0f} steps/s "
+        f"({d.core_steps_per_s / rt:.2f}x real time)"
+    )
+    core = d.core_steps_per_s
+    print(
+        f"in-process with MCAP recording: {d.inprocess_recorded_steps_per_s:,.0f} steps/s "
+        f"({d.inprocess_recorded_steps_per_s / core:.2f} of the core loop)"
+    )
+    print(
+        f"reading the recording back and evaluating it (report): {d.report_steps_per_s:,.0f} "
+        f"steps/s ({d.report_steps_per_s / core:.2f} x the core loop)"
+    )
+    for g in d.graph:
+        if g.steps_per_s is None:
+            print(f"{g.run.key} ({g.run.what}): no figure (too few progress samples for a slope)")
+        else:
+            print(
+                f"{g.run.key} ({g.run.what}): {g.steps_per_s:,.0f} steps/s "
+                f"({g.steps_per_s / rt:.2f}x real time, {g.steps_per_s / core:.2f} of the core "
+                f"loop; slope over 20-90 % of one run, start-up {g.startup_s:.1f} s excluded)"
+            )
+    for name, us in d.compute_us_per_step.items():
+        print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")
+    return 0

@@ -1,0 +1,165 @@
+"""What the verbs share: strict JSON, the progress bar, refusing an option that does not apply,
+and printing a recording's metrics (``run`` and ``report`` print the same)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
+
+from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    from ..api.report import RecordingDetails
+    from ..core.metrics import Metrics
+
+__all__ = ["dumps", "given", "print_recording", "progress", "refuse", "say_json"]
+
+
+def _finite(obj: Any) -> Any:
+    """NaN/inf → None, so ``--json`` prints strict JSON (null where a figure does not exist)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover - numpy is a requirement
+        return obj
+    if isinstance(obj, np.floating):
+        return _finite(float(obj))
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def dumps(obj: Any) -> str:
+    """One line of strict JSON."""
+    return json.dumps(_finite(obj), indent=None, allow_nan=False)
+
+
+class _Result(Protocol):
+    def as_dict(self) -> dict[str, Any]: ...
+
+
+def say_json(result: _Result) -> int:
+    """Print a verb's typed result as one JSON object; exit status 0."""
+    print(dumps(result.as_dict()))
+    return 0
+
+
+def progress(
+    enabled: bool, unit: str = "step"
+) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
+    """``(update(k, n), close())`` of a progress bar on stderr, or ``(None, no-op)``."""
+    if not enabled:
+        return None, lambda: None
+    from tqdm import tqdm
+
+    bar: dict[str, Any] = {}
+
+    def update(k: int, n: int) -> None:
+        if "bar" not in bar:
+            bar["bar"] = tqdm(
+                total=n, unit=unit, unit_scale=unit == "step", file=sys.stderr, leave=False
+            )
+        b = bar["bar"]
+        b.update(k - b.n)
+
+    def close() -> None:
+        if "bar" in bar:
+            bar["bar"].close()
+
+    return update, close
+
+
+def given(args: argparse.Namespace, name: str) -> bool:
+    """The option ``name`` was given on the command line (its default is None)."""
+    value = getattr(args, name, None)
+    return value is not None and value is not False and value != []
+
+
+def refuse(args: argparse.Namespace, reason: str, *names: str) -> None:
+    """ConfigError naming the first of ``names`` that was given, and why it does not apply."""
+    for name in names:
+        if given(args, name):
+            raise ConfigError(f"--{name.replace('_', '-')} {reason}")
+
+
+class _Recording(Protocol):
+    """What ``run`` and ``report`` both say of a recording (read-only)."""
+
+    @property
+    def scenario(self) -> str: ...
+    @property
+    def strategy(self) -> str: ...
+    @property
+    def engine(self) -> str: ...
+    @property
+    def steps(self) -> int: ...
+    @property
+    def bag(self) -> Any: ...
+    @property
+    def metrics(self) -> Metrics: ...
+    @property
+    def details(self) -> RecordingDetails: ...
+    @property
+    def window_note(self) -> str: ...
+
+
+#: the metrics ``run`` and ``report`` print, in order (how each is shown: core.metrics.METRICS)
+SHOWN = ("t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "speed_rmse")
+
+
+def print_recording(r: _Recording, wall_s: float | None = None) -> None:
+    """A recording's metrics, one per line with what it is, then its details."""
+    from ..core.metrics import METRICS
+
+    m = r.metrics
+    print(
+        f"scenario {r.scenario}  strategy {r.strategy}  engine {r.engine}  steps {r.steps}"
+        + (f"  wall {wall_s:.2f} s" if wall_s is not None else "")
+    )
+    print(f"bag      {r.bag}")
+    print(f"window   {m.t_start:.4g}-{m.t_end:.4g} s ({m.steps} steps)")
+    rows = [(METRICS[k], getattr(m, k)) for k in SHOWN]
+    rows.append((METRICS["compute_ns_median"], m.compute_ns_median))
+    for shown, value in rows:
+        text = f"{shown.format(value)} {shown.unit}".rstrip()
+        print(f"  {shown.title:<11}{text:>16}   {shown.description}")
+    if m.thd == m.thd:  # NaN: no THD window
+        shown = METRICS["thd"]
+        harmonics = METRICS["thd_harmonics"].format(m.thd_harmonics)
+        print(
+            f"  {shown.title:<11}{shown.format(m.thd) + ' %':>16}   phase-a distortion, "
+            f"{m.thd_cycles} cycles of {m.thd_fundamental_hz:.1f} Hz (harmonics alone "
+            f"{harmonics} %)"
+        )
+    if any(m.utilization):
+        util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m.utilization))
+        print(f"  {'vectors':<11}{util}")
+    d = r.details
+    if len(d.strategies) > 1:
+        for sp in d.strategies:
+            print(
+                f"  {'strategy':<11}{sp.strategy:>16}   steps {sp.first}-{sp.last} "
+                f"({sp.t_start:g}-{sp.t_end:g} s)"
+            )
+    if d.outcome:
+        print(f"  {'outcome':<11}{d.outcome}")
+    for e in d.parameter_events:
+        changes = ", ".join(f"{k} = {v}" for k, v in e.changed.items())
+        print(f"  {'parameter':<11}{e.t:>14.6g} s   {e.node}: {changes}")
+    for st in d.load_steps:
+        print(
+            f"  load {st.load_torque:g} N·m from {st.t_start:g} s: current angle "
+            f"{math.degrees(st.theta):.2f} deg, |i_s| {st.i_s:.4f} A (means over the step's "
+            f"second half, measured), angle settled {st.settle_s:.3f} s after the step"
+        )
+    if r.window_note:
+        print(f"  note: {r.window_note}")

@@ -1,0 +1,35 @@
+"""``predictive-drive param get|set NODE NAME [VALUE]``: a parameter of a running node."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..errors import ConfigError
+
+HELP = (
+    "get or set a parameter of a running node (uses ROS_DOMAIN_ID; `run` prints the domain of "
+    "its graph)"
+)
+JSON = False
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("action", choices=["get", "set"])
+    p.add_argument("node", help="node name, e.g. torque_controller or /drive/torque_controller")
+    p.add_argument("name", help="parameter name, e.g. strategy")
+    p.add_argument("value", nargs="?", help="set: the new value (read as YAML: 1, 1.0, mptc)")
+
+
+def main(a: argparse.Namespace) -> int:
+    from ..ros.params import param
+
+    if a.action == "get":
+        if a.value is not None:
+            raise ConfigError("param get takes NODE NAME only")
+        print(param(node=a.node, name=a.name))
+    else:
+        if a.value is None:
+            raise ConfigError("param set needs NODE NAME VALUE")
+        param(node=a.node, name=a.name, value=a.value)
+        print(f"set {a.name} = {a.value} on {a.node}")
+    return 0

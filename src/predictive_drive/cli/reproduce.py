@@ -1,0 +1,118 @@
+"""``predictive-drive reproduce SCENARIO``: a paper's table, or an MTPA study, run again."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..api.reproduce import MTPAStudyResult, PaperTableResult, reproduce
+from ..api.run import ENGINES
+from ..api.sweep import parse_set
+from ..errors import ConfigError
+from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
+from .common import refuse, say_json
+
+HELP = "a paper's table side by side with our figures (or an MTPA study)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES]))
+    p.add_argument("--engine", default="inprocess", choices=ENGINES)
+    p.add_argument(
+        "--repeats", type=int, help="timing repeats for the compute ratios (median; default 5; "
+        "ipmsm_validation only, the one table with compute ratios)",
+    )  # fmt: skip
+    p.add_argument(
+        "--duration", type=float, help="shorten every run to this many simulated seconds"
+    )
+    p.add_argument("--figures", metavar="DIR", help="draw the table's runs, overlaid (PNG)")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a scenario setting for every run, e.g. speed_pi.speed_loop=immediate (repeatable)",
+    )
+
+
+def main(a: argparse.Namespace) -> int:
+    table = PAPER_TABLES.get(a.scenario)
+    if table is None or not table.compute_ratios:
+        refuse(a, f"times the compute ratios, which {a.scenario} has none of", "repeats")
+    settings = {}
+    for text in a.set or []:
+        key, values = parse_set(text)
+        if len(values) != 1:
+            raise ConfigError(f"--set {text}: one value per key here (a grid is `sweep`)")
+        settings[key] = values[0]
+    d = reproduce(
+        a.scenario,
+        engine=a.engine,
+        repeats=5 if a.repeats is None else a.repeats,
+        duration=a.duration,
+        figures=a.figures,
+        settings=settings,
+    )
+    if a.json:
+        return say_json(d)
+    if isinstance(d, MTPAStudyResult):
+        print_mtpa(d)
+    else:
+        print_table(d)
+    for f in d.figures:
+        print(f"figure {f}")
+    return 0
+
+
+def _settings(d: PaperTableResult | MTPAStudyResult) -> None:
+    if d.duration is not None:
+        print(f"NOTE: runs shortened to {d.duration:g} s; not comparable with the paper")
+    if d.settings:
+        print("every run with " + ", ".join(f"{k} = {v}" for k, v in d.settings.items()))
+
+
+def print_table(d: PaperTableResult) -> None:
+    print(f"{d.scenario} vs {d.paper}  (engine {d.engine})")
+    _settings(d)
+    width = max(len(r.label) for r in d.rows) + 1
+    print(f"{'':<{width}}" + "".join(f" {c.heading:>17}" for c in d.columns))
+    print(f"{'':<{width}}" + "".join(f" {'ours':>8} {'paper':>8}" for _ in d.columns))
+    for r in d.rows:
+        line = f"{r.label:<{width}}"
+        for c in d.columns:
+            line += f" {c.metric.format(r.figures.get(c.key)):>8}"
+            line += f" {c.metric.format(r.paper.get(c.key)):>8}"
+        print(line)
+    print(f"How computed: {d.how}")
+
+
+def print_mtpa(d: MTPAStudyResult) -> None:
+    print(f"{d.scenario}: {d.paper}  (engine {d.engine})")
+    _settings(d)
+    print(
+        f"{'strategy':<14} {'form':<10} {'L_d':>4} {'L_q':>4} {'T_L':>5} {'theta':>7} "
+        f"{'MTPA':>7} {'error':>6} {'|i_s|':>8} {'MTPA':>8} {'excess':>7} {'i_d=0':>8} "
+        f"{'settle':>7}"
+    )
+    print(
+        f"{'':<14} {'':<10} {'x':>4} {'x':>4} {'N·m':>5} {'deg':>7} {'deg':>7} {'deg':>6} "
+        f"{'A':>8} {'A':>8} {'%':>7} {'A':>8} {'s':>7}"
+    )
+    for r in d.rows:
+        m = r.mismatch
+        err = r.theta_deg - r.theta_mtpa_deg
+        excess = 100.0 * (r.i_s / r.i_s_mtpa - 1.0)
+        print(
+            f"{r.strategy:<14} {r.form or '':<10} {m['l_d']:>4g} {m['l_q']:>4g} "
+            f"{r.load_torque:>5g} {r.theta_deg:>7.2f} {r.theta_mtpa_deg:>7.2f} "
+            f"{err:>+6.2f} {r.i_s:>8.4f} {r.i_s_mtpa:>8.4f} {excess:>+7.3f} "
+            f"{r.i_s_zero_d:>8.4f} {r.settle_s:>7.3f}"
+        )
+    for c in d.claims:
+        print(
+            f"paper's claims at {c.load_torque:g} N·m: settles in {c.settle_s:.3f} s "
+            f"({'confirmed' if c.settles_under_1_s else 'REFUTED'}: well under 1 s); "
+            f"|i_s| {c.i_s:.4f} A vs {c.i_s_zero_d_measured:.4f} A under i_d = 0: "
+            f"{100 * c.saving_vs_zero_d:+.3f} % saved of {100 * c.saving_possible:.3f} % "
+            f"possible, resolution {100 * c.resolution:.3f} % ({c.less_current_than_zero_d}:"
+            f" less current than i_d = 0)"
+        )
+    print(f"How computed: {d.how}")
