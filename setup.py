@@ -12,7 +12,7 @@ setup(
     version="0.1.0",
     description="Model predictive torque control of electric drives on a lock-step ROS 2 graph",
     license="Apache-2.0",
-    python_requires=">=3.10",
+    python_requires=">=3.11",  # enum.StrEnum
     package_dir={"": "src"},
     packages=find_packages("src"),
     package_data={

@@ -50,6 +50,16 @@ def test_a_directory_given_as_scenario_is_called_a_directory(tmp_path):
         load_scenario(tmp_path)
 
 
+def test_a_scenario_name_is_not_shadowed_by_a_folder_of_that_name(tmp_path, monkeypatch):
+    """`run im_short --out im_short` once, then `run im_short` again from the same folder: the
+    name is still the scenario's."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "im_short").mkdir()
+    assert load_scenario("im_short").name == "im_short"
+    with pytest.raises(ConfigError, match="is a directory, not a scenario file"):
+        load_scenario("./im_short")  # a path: the folder it names
+
+
 def test_numbers_read_as_rcl_reads_them(tmp_path):
     """`ts: 5e-5` is a number to rcl's --params-file; so it is here."""
     p = scenario_with(tmp_path, "ts: 5.0e-05", "ts: 5e-5")

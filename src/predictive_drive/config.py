@@ -132,8 +132,13 @@ def scenario_names() -> list[str]:
 
 
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
+    """The file of a scenario given by name (``im_paper``: the scenario folder's
+    ``im_paper.yaml``) or by path (with a .yaml suffix, a folder in it, or a file that exists). A
+    bare name is a scenario's even where a folder of that name lies in the working directory
+    (``bags/im_short`` beside ``im_short``...)."""
     p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") or p.exists():
+    bare = isinstance(name_or_path, str) and "/" not in name_or_path and not p.suffix
+    if not bare and (p.suffix in (".yaml", ".yml") or p.exists()):
         if p.is_dir():
             raise ConfigError(f"scenario {p} is a directory, not a scenario file")
         if not p.is_file():
@@ -141,6 +146,8 @@ def resolve_scenario_path(name_or_path: str | Path) -> Path:
         return p
     candidate = config_dir() / f"{name_or_path}.yaml"
     if not candidate.is_file():
+        if bare and p.is_file():  # a scenario file of the user's, named without a suffix
+            return p
         raise ConfigError(
             f"unknown scenario {str(name_or_path)!r}; available: {', '.join(scenario_names())} "
             f"(or give a path to a .yaml file)"

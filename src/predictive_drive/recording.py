@@ -1,9 +1,10 @@
 """What a run records, shared by the in-process engine and the metrics_logger node.
 
-Per step: state, reference and command; every :data:`~.interface.CLOCK_PERIOD` of simulated time the
-plant's ``/clock`` and ``/drive/joint_states``; about once per simulated second ``/diagnostics`` with
-running metrics. The plant node publishes the tool messages built by :func:`tool_messages`, so both
-engines record the same bytes.
+Per step: state, reference and command; every :data:`~.interface.CLOCK_PERIOD` of simulated time
+the plant's ``/clock`` and ``/drive/joint_states``; every 0.1 s of simulated time (10 Hz)
+``/diagnostics`` and ``/drive/metrics`` with the period's running metrics, and the run's outcome at
+its end. The plant node publishes the tool messages built by :func:`tool_messages`, so both engines
+record the same bytes.
 """
 
 from __future__ import annotations

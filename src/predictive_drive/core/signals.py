@@ -93,7 +93,9 @@ class Command(NamedTuple):
     current_angle: float  #: FOC: current angle θ from the q axis, dither included, rad (else NaN)
     i_d_ref: float  #: FOC: d-current reference, A (else NaN)
     i_q_ref: float  #: FOC: q-current reference, A (else NaN)
-    mtpa_gradient: float  #: foc_injection: demodulated d|T|/dθ / |T|, 1/rad (else NaN)
+    #: foc_injection: the demodulated, low-passed d(T/I)/dθ divided by k_t = 1.5·p·ψ_f (the
+    #: torque per ampere at θ = 0), 1/rad (else NaN)
+    mtpa_gradient: float
     compute_ns: float  #: wall time of the control law alone, ns (not deterministic)
 
 

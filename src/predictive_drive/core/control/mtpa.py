@@ -1,5 +1,6 @@
 """Paper 002: maximum torque per ampere (MTPA) laws — the current angle of field-oriented control
-(SPEC §3.4). One law per strategy of the ``foc_pmsm`` family.
+(docs/physics.md, "Field-oriented control and MTPA"). One law per strategy of the ``foc_pmsm``
+family.
 
 The current vector is I_s at the angle θ from the q axis: i_d = -I_s sin θ, i_q = ±I_s cos θ
 (the sign of the torque). T = 1.5 p I_s cos θ [ψ_f - (L_d - L_q) I_s sin θ] (paper 002 eq 8).
@@ -10,12 +11,11 @@ The current vector is I_s at the angle θ from the q axis: i_d = -I_s sin θ, i_
   sliding DFT (eq 17-18, M samples per dither period), says which way dT/dθ points; an
   integrator moves θ0 until it is zero, without L_d, L_q. Two forms:
 
-  ``corrected`` (default) — the electromagnetic power P = 1.5 (u·i - R_s |i|²) = ω_m T + dW/dt
-  over each period and the measured current angle each go through a sliding DFT; the in-phase
-  part of P's dither component against the *measured* angle's, Re(P_h·conj(Θ_h)) / (ω_m |Θ_h|²),
-  is dT/dθ. The stored-energy term dW/dt is in quadrature with the measured angle's dither and
-  drops out, whatever delay the current loop and sampling add (they delay the measured angle
-  too).
+  ``corrected`` (default) — the torque per ampere T/|i|, the torque from a flux estimate that
+  needs no L_d, L_q (:class:`FluxObserver`: the volt-seconds the controller applied, pulled
+  slowly towards the steady-state voltage balance), and the *measured* current angle Θ each go
+  through a sliding DFT at the dither frequency; Re(τ_h·conj(Θ_h)) / |Θ_h|² is d(T/I)/dθ, whatever
+  phase the current loop and sampling add (they delay the measured angle too).
 
   ``as_printed`` — eq 16 with the ratios (u_d - R_s i_d)/(ω_e i_q) and (u_q - R_s i_q)/ω_e taken
   as constant over a dither period (their sliding-DFT means) and the dithered reference currents,
@@ -199,8 +199,9 @@ class MTPAContext(NamedTuple):
 
 class InjectionMTPA:
     """θ = θ0 + A sin(2πk/M): the dithered current angle; θ0 moved by an integrator until the
-    demodulated dT/dθ is zero (see the module's text for the two forms). ``gradient`` is the
-    last low-passed, normalised gradient (d|T|/dθ / |T|, 1/rad) — recorded in the command."""
+    demodulated gradient is zero (see the module's text for the two forms). ``gradient`` is the
+    last low-passed one, normalised by the torque constant k_t = 1.5·p·ψ_f (the torque per ampere
+    at θ = 0): d(T/I)/dθ / k_t in 1/rad — recorded in the command as ``mtpa_gradient``."""
 
     name = "foc_injection"
 
@@ -257,8 +258,8 @@ class InjectionMTPA:
 def _corrected(
     obs: FluxObserver, dfts: dict[str, SlidingDFT], x: MTPAInputs, ctl: MTPAContext
 ) -> float:
-    """d(T/I)/dθ / (T/I) (1/rad) at step k: the torque per ampere from the voltage-model flux
-    and the measured current, against the measured current angle."""
+    """d(T/I)/dθ / k_t (1/rad) at step k, k_t = 1.5·p·ψ_f: the torque per ampere from the
+    voltage-model flux and the measured current, against the measured current angle."""
     psi = obs.update(x, ctl)
     i = x.i_dq
     mag = abs(i)
@@ -266,7 +267,7 @@ def _corrected(
     per_amp = dfts["tpa"].update(torque / mag if mag > 0.0 else 0.0)
     theta_h = dfts["th"].update(math.atan2(-i.real, x.sign * i.imag))
     den = abs(theta_h) ** 2
-    scale = 1.5 * ctl.p * ctl.psi_f  # ≈ T/I: makes the gradient a share per radian
+    scale = 1.5 * ctl.p * ctl.psi_f  # k_t, the torque per ampere at θ = 0: a share per radian
     if den == 0.0:
         return 0.0
     return x.sign * (per_amp.real * theta_h.real + per_amp.imag * theta_h.imag) / den / scale
@@ -331,7 +332,8 @@ def _as_printed(
     m = ctl.samples
     # the dither-frequency component as a signal (eq 17-18), demodulated with sin (eq 19)
     demod = dfts["t"].update(t_h).real * math.sin(TWO_PI * (x.k % m) / m)
-    scale = x.i_s * 1.5 * ctl.psi_f  # eq 14 has no p: the scale of its torque
+    # eq 14 has no p: k_t·I_s of its torque, so the gradient is dT/dθ / (k_t I_s) as above
+    scale = x.i_s * 1.5 * ctl.psi_f
     if scale <= 0.0:
         return 0.0
     return x.sign * demod / (0.5 * ctl.amplitude * scale)
