@@ -1,5 +1,6 @@
-"""Utilization analysis (SPEC §6.4): the candidate tables strategies 2 and 3 use are regenerated
-from a strategy-1 recording; the paper-001 reproductions run end to end (shortened)."""
+"""Utilization analysis (docs/physics.md#utilization-analysis): the candidate tables strategies 2
+and 3 use are regenerated from a strategy-1 recording; the paper-001 reproductions run end to end
+(shortened)."""
 
 import json
 import math
@@ -38,7 +39,7 @@ def test_analyze_regenerates_the_candidate_tables(s1_bag, tmp_path):
     d = analyze(s1_bag, write_tables=tmp_path / "tables.json")
     assert d.threshold == pytest.approx(0.6) and d.steps == 80000
     assert d.matches_tables, d.differences
-    # SPEC §3.3's printed column (ΔT > +th, Δψ ≥ 0) — the one paper 001 prints for strategy 3
+    # paper 001's printed column (ΔT > +th, Δψ ≥ 0) — the one paper 001 prints for strategy 3
     assert d.derived["twelve_sector"]["T+psi+"][:3] == [[0, 2, 3], [0, 2, 3, 4], [0, 3, 4]]
     written = load_candidate_tables(tmp_path / "tables.json")
     assert (written.six, written.twelve) == (TABLES.six, TABLES.twelve)

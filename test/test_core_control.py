@@ -1,4 +1,4 @@
-"""Strategies against exhaustive search, deadbeat landing, soft start, speed PI (SPEC §3)."""
+"""Strategies against exhaustive search, deadbeat landing, soft start, speed PI (docs/physics.md)."""
 
 import cmath
 import math
@@ -35,8 +35,8 @@ def random_states(n, seed=1):
 
 def exhaustive(coef, i, psi, w, t_ref, candidates):
     """Independent brute force: one forward-Euler step of the plant's own dynamics function
-    (SPEC §2.2; what the controller's prediction is specified to be) for each candidate (vector,
-    time it is applied: the voltage averaged over Ts), scored with the cost of SPEC §3.2; first
+    (paper 000 eq 1; what the controller's prediction is specified to be) for each candidate (vector,
+    time it is applied: the voltage averaged over Ts), scored with the cost of paper 000 eq 8; first
     strict minimum in V0..V6 order."""
     best, best_n = math.inf, None
     for n, u, t_u in candidates:

@@ -1,5 +1,6 @@
 """Paper 002: SVPWM, the dq current loop, the MTPA laws and the sliding DFT against closed forms
-and independent computations; the field-oriented family in closed loop (SPEC §3.4)."""
+and independent computations; the field-oriented family in closed loop
+(docs/physics.md#field-oriented-control-and-mtpa)."""
 
 from __future__ import annotations
 
@@ -178,7 +179,9 @@ def test_formula_angle_minimises_the_current_for_its_torque(motor):
 
 def test_mtpa_point_of_paper_001s_ipmsm_at_rated_torque():
     m = mtpa_point(15.0, p=3, psi_f=0.2264, l_d=0.0033, l_q=0.0073)
-    assert math.degrees(m.theta) == pytest.approx(13.1, abs=0.01)  # SPEC §4
+    assert math.degrees(m.theta) == pytest.approx(
+        13.1, abs=0.01
+    )  # docs/reproduction.md#mtpa-paper-002
     assert 1 - m.i_s / m.i_s_zero_d == pytest.approx(0.029, abs=0.001)  # 2.9 % less current
     assert torque_at(m.i_s, m.theta, p=3, psi_f=0.2264, l_d=0.0033, l_q=0.0073) == (
         pytest.approx(15.0, rel=1e-9)

@@ -135,7 +135,8 @@ def test_printed_a0_has_the_sign_error(coef):
 
 
 def _eq5_corrected(motor, i, psi, w, u):
-    """Paper 000 eq 5 as corrected in SPEC §3.2 — an independent form of the same prediction."""
+    """Paper 000 eq 5 as corrected (docs/physics.md#paper-000s-misprints) — an independent form of
+    the same prediction."""
     s = motor.sigma
     r_sig = motor.r_s + motor.r_r * motor.l_m**2 / motor.l_r**2
     tau_sig = s * motor.l_s / r_sig

@@ -155,7 +155,8 @@ def test_eq2_literal_for_the_surface_machine():
 
 
 def candidates_of(name, m, t_ref, psi_ref):
-    """What the strategy may choose from, per SPEC §3.3 (None: the zero vector, nothing evaluated)."""
+    """What the strategy may choose from, per docs/physics.md#mptc-of-the-pmsm (None: the zero
+    vector, nothing evaluated)."""
     d_t = t_ref - m.te
     if name != "mptc" and abs(d_t) <= m.threshold:
         return None

@@ -1,4 +1,4 @@
-"""Figures (SPEC §7): what each draws is the recording's own data, read back from the artists."""
+"""Figures (docs/recordings.md): what each draws is the recording's own data, read back from the artists."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""End to end: the four nodes as real processes (SPEC §5, §7). Each test owns what it starts and
-ends it by PID in teardown; a hung peer fails the test through timeouts instead of hanging CI."""
+"""End to end: the four nodes as real processes (docs/ros.md; docs/recordings.md). Each test owns
+what it starts and ends it by PID in teardown; a hung peer fails the test through timeouts instead
+of hanging CI."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""The package's layering (shared/ARCHITECTURE.md): arrows point down, the core is ROS-free and
-numpy-only, and only ``ros/`` touches rclpy. Module lists come from ``pkgutil``, not a hand list."""
+"""The package's layering (docs/architecture.md#the-layers): arrows point down, the core is ROS-free
+and numpy-only, and only ``ros/`` touches rclpy. Module lists come from ``pkgutil``, not a hand
+list."""
 
 from __future__ import annotations
 

@@ -34,6 +34,28 @@ def free_port() -> int:
 
 
 @pytest.mark.core
+def test_the_view_speaks_foxglove_sdk_v1_only():
+    """What docs/ros.md tells users of Foxglove and Lichtblick: the handshake accepts the
+    ``foxglove.sdk.v1`` subprotocol (also when a client offers it beside the older one) and
+    refuses a client that offers only ``foxglove.websocket.v1`` with HTTP 400."""
+    import websocket
+
+    from predictive_drive.live import LiveView
+
+    view = LiveView(port=free_port(), ts=50e-6, strategy="mptc", strategy_names=("mptc",))
+    try:
+        for offered in (["foxglove.sdk.v1"], ["foxglove.websocket.v1", "foxglove.sdk.v1"]):
+            ws = websocket.create_connection(view.url, subprotocols=offered, timeout=5)
+            assert ws.getsubprotocol() == "foxglove.sdk.v1"
+            ws.close()
+        with pytest.raises(websocket.WebSocketBadStatusException) as e:
+            websocket.create_connection(view.url, subprotocols=["foxglove.websocket.v1"], timeout=5)
+        assert e.value.status_code == 400
+    finally:
+        view.close()
+
+
+@pytest.mark.core
 def test_the_view_serves_decimated_topics_time_and_the_strategy():
     from predictive_drive.live import LiveView
 

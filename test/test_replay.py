@@ -1,4 +1,4 @@
-"""Replays (SPEC §7): a recording onto ROS topics as ros2 bag play does, received by an independent
+"""Replays (docs/recordings.md): a recording onto ROS topics as ros2 bag play does, received by an independent
 subscriber in order and byte for byte; and a recording fed step by step into a controller node."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``predictive-drive analyze``: vector utilization of a recording (paper 001 Tables 1, 3-8) and
-the candidate sets it derives (SPEC §6.4)."""
+the candidate sets it derives (docs/physics.md#utilization-analysis)."""
 
 from __future__ import annotations
 

@@ -69,7 +69,10 @@ def main(a: argparse.Namespace) -> int:
 
 def print_sweep(r: SweepResult) -> None:
     keys = list(dict.fromkeys(k for row in r.rows for k in row.settings))
-    widths = [max(len(k.rsplit(".", 1)[-1]), 6) for k in keys]
+    widths = [
+        max(6, len(k.rsplit(".", 1)[-1]), *(len(str(row.settings.get(k))) for row in r.rows))
+        for k in keys
+    ]
     head = " ".join(f"{k.rsplit('.', 1)[-1]:>{w}}" for k, w in zip(keys, widths))
     shown = [METRICS[c] for c in COLUMNS]
     print(f"{'strategy':<14} {head} " + " ".join(f"{m.title:>9}" for m in shown))

@@ -1,15 +1,15 @@
 """Analyses of a recorded run beyond its metrics.
 
-Vector utilization (paper 001 §3-5, SPEC §6.4): how often each voltage vector was chosen
-by torque-error band, by flux sector × torque-error sign and by 12 sectors × torque- and flux-error
-sign, and the candidate sets a stated rule derives from that. This is how the simplified strategies
-were designed; here it is a function of a recording.
+Vector utilization (paper 001 §3-5, docs/physics.md#utilization-analysis): how often each voltage
+vector was chosen by torque-error band, by flux sector × torque-error sign and by 12 sectors ×
+torque- and flux-error sign, and the candidate sets a stated rule derives from that. This is how the
+simplified strategies were designed; here it is a function of a recording.
 
 Errors are the controller's own: ΔT = T* - T̂ and Δψ = ψ* - |ψ̂| at each step, the sector that of ψ̂
 (all recorded in the command and reference records), so the tables describe what the strategy saw.
 
-Load steps (the MTPA study, SPEC §3.4): the measured current angle and amplitude each load settles
-to, and how long the angle took.
+Load steps (the MTPA study, docs/physics.md#field-oriented-control-and-mtpa): the measured current
+angle and amplitude each load settles to, and how long the angle took.
 """
 
 from __future__ import annotations
@@ -111,7 +111,8 @@ def derive_candidates(counts: np.ndarray, *, min_relative: float = MIN_RELATIVE)
 
 @dataclass(frozen=True)
 class LoadStep:
-    """How a run settled after one load step (the MTPA study, SPEC §3.4).
+    """How a run settled after one load step (the MTPA study,
+    docs/physics.md#field-oriented-control-and-mtpa).
 
     ``theta`` (rad) and ``i_s`` (A) are means over the step's second half of the *measured*
     current angle from the q axis, atan2(-i_d, |i_q|), and amplitude |i_αβ|; ``settle_s`` is the

@@ -1,4 +1,5 @@
-"""Two-level inverter: switching states, voltage vectors and per-period switching sequences (SPEC §2.1).
+"""Two-level inverter: switching states, voltage vectors and per-period switching sequences
+(docs/physics.md#the-inverter-and-the-command).
 
 Space vectors use the amplitude-invariant Clarke transform, u = (2/3)·U_dc·(S_a + a·S_b + a²·S_c) with
 a = exp(j·2π/3). Vector numbering follows both papers: V0 = 000, V1 = 100 (0°), V2 = 110 (60°),

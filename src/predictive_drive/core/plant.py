@@ -1,8 +1,9 @@
 """The drive plant: inverter + machine + mechanics, advanced one control period per command.
 
-Each period is split into the command's piecewise-constant switching segments (SPEC §2.1) and each
-segment is integrated with the integrator passed in, in sub-steps of at most ``max_substep`` (the IM's
-exact discretisation for frozen ω, the PMSM's fused RK4).
+Each period is split into the command's piecewise-constant switching segments
+(docs/physics.md#the-inverter-and-the-command) and each segment is integrated with the integrator
+passed in, in sub-steps of at most ``max_substep`` (the IM's exact discretisation for frozen ω, the
+PMSM's fused RK4).
 """
 
 from __future__ import annotations
@@ -58,7 +59,8 @@ def _rk4(
 
 
 class InverterPlant:
-    """A machine on a two-level inverter with a stepped load (SPEC §2.1, §2.4).
+    """A machine on a two-level inverter with a stepped load
+    (docs/physics.md#the-inverter-and-the-command; docs/physics.md#mechanics-and-load).
 
     ``step(command)`` applies command k for one period Ts and returns state k+1: each switching segment
     is integrated with ``integrator`` (default: the machine's own, see above) in sub-steps of at most
@@ -149,8 +151,8 @@ class InverterPlant:
 
 
 class InductionPlant(InverterPlant):
-    """Induction motor (SPEC §2.2); state (i_s, ψ_s, ω_m, θ_m), initially all zero (de-energised,
-    at standstill)."""
+    """Induction motor (docs/physics.md#induction-motor); state (i_s, ψ_s, ω_m, θ_m), initially all
+    zero (de-energised, at standstill)."""
 
     motor: InductionMotor
     coefficients = InductionCoefficients
@@ -166,7 +168,7 @@ class InductionPlant(InverterPlant):
 
 
 class PMSMPlant(InverterPlant):
-    """PMSM (SPEC §2.3); state (i_dq, ω_m, θ_m), initially no current, at standstill, θ_m = 0. The
+    """PMSM (docs/physics.md#pmsm); state (i_dq, ω_m, θ_m), initially no current, at standstill, θ_m = 0. The
     published currents and flux are turned into αβ with θ_e = p·θ_m."""
 
     motor: PMSM

@@ -61,7 +61,7 @@ class Reference(NamedTuple):
 
 class PhasePulses(NamedTuple):
     """One period's switching command: phase x is high on [delay_x, delay_x + duty_x), fractions
-    of Ts (SPEC §2.1). The command format shared by every control law."""
+    of Ts (docs/physics.md#the-inverter-and-the-command). The command format shared by every control law."""
 
     delay_a: float
     delay_b: float

@@ -1,5 +1,6 @@
 """Space-vector PWM: a voltage reference u*_αβ per period → centre-aligned per-phase pulses in the
-command format every plant understands (SPEC §2.1, §3.4).
+command format every plant understands (docs/physics.md#the-inverter-and-the-command;
+docs/physics.md#field-oriented-control-and-mtpa).
 
 The phase references are the inverse (amplitude-invariant) Clarke transform of u*; the min-max
 zero sequence v0 = -(max + min)/2 centres them in the DC link, which is what symmetric SVPWM with

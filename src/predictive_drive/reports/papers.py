@@ -1,4 +1,4 @@
-"""The papers' tables, each in one place: the published numbers (SPEC §8), the rows we run, the
+"""The papers' tables, each in one place: the published numbers (docs/reproduction.md), the rows we run, the
 caption, how our figures are computed, and the columns printed side by side.
 """
 
@@ -135,7 +135,7 @@ PAPER_TABLES: dict[str, PaperTable] = {
         "0.05-6 s; f_ave counts two device transitions per leg change (the paper gives no f_ave); "
         "compute = median wall time of the control law per step on this machine. The paper's MPTC "
         "T_RMSE (0.2582) was not reproduced under any reading tried; an independent "
-        "implementation of the same SPEC got 0.230.",
+        "implementation of the same equations got 0.230.",
         tuple(PaperRow(s, {}, v) for s, v in PAPER_000_TABLE2.items()),
         (
             Column("t_rmse"),
@@ -204,9 +204,10 @@ PAPER_TABLES: dict[str, PaperTable] = {
 
 @dataclass(frozen=True)
 class MTPAStudy:
-    """An MTPA study (SPEC §3.4): every strategy at every load step of the scenario, then the
-    mismatch cases — the controller's L_d and L_q scaled by (f_d, f_q) — for the strategies that
-    depend on a model, and paper 002's printed injection form beside the corrected one."""
+    """An MTPA study (docs/physics.md#field-oriented-control-and-mtpa): every strategy at every load
+    step of the scenario, then the mismatch cases — the controller's L_d and L_q scaled by (f_d,
+    f_q) — for the strategies that depend on a model, and paper 002's printed injection form beside
+    the corrected one."""
 
     caption: str
     how: str
@@ -239,7 +240,7 @@ _MTPA_HOW = (
 
 MTPA_STUDIES: dict[str, MTPAStudy] = {
     "ipmsm_mtpa": MTPAStudy(
-        "MTPA on paper 001's interior PMSM (SPEC §3.4, §4): loads 5, 10, 15 N·m",
+        "MTPA on paper 001's interior PMSM (paper 002's laws): loads 5, 10, 15 N·m",
         _MTPA_HOW,
         (),
     ),

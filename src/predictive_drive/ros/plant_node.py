@@ -1,7 +1,7 @@
 """The plant node: motor + inverter + load (``ros2 run predictive_drive plant_node --ros-args
 --params-file config/<scenario>.yaml``).
 
-Lock-step (SPEC §5): publishes state k, applies command k for Ts, publishes state k+1; /clock and
+Lock-step (docs/ros.md): publishes state k, applies command k for Ts, publishes state k+1; /clock and
 /drive/joint_states decimated to 1 kHz of simulated time. Back-pressure: it runs at most
 :data:`~predictive_drive.interface.RECORDING_WINDOW` steps ahead of what the recorder says it has
 written (/drive/recorded); a state beyond that is held until the recorder catches up, and a

@@ -1,4 +1,5 @@
-"""What every inner controller shares, whatever its family (SPEC §2.5, §3).
+"""What every inner controller shares, whatever its family
+(docs/physics.md#what-the-controller-sees; docs/physics.md).
 
 A controller turns state k and reference k into command k: it estimates what it needs from the
 measurements, runs its control law (the strategy in force; the only part timed), and modulates

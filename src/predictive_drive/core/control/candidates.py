@@ -1,8 +1,9 @@
-"""Candidate vector sets of paper 001's simplified strategies 2 and 3 (SPEC §3.3), as data.
+"""Candidate vector sets of paper 001's simplified strategies 2 and 3
+(docs/physics.md#mptc-of-the-pmsm), as data.
 
 The sets live in ``candidate_tables.json`` beside this module, in the shape
 ``predictive-drive analyze --write-tables`` writes them: the utilization analysis of a recording
-regenerates them (SPEC §6.4), so they are never hand-typed constants in the code.
+regenerates them (docs/physics.md#utilization-analysis), so they are never hand-typed constants in the code.
 """
 
 from __future__ import annotations

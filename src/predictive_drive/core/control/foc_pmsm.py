@@ -1,5 +1,5 @@
 """Paper 002: field-oriented control of the PMSM with SVPWM, the controller family ``foc_pmsm``
-(SPEC §3.4). Its strategies are the MTPA laws of :mod:`.mtpa`.
+(docs/physics.md#field-oriented-control-and-mtpa). Its strategies are the MTPA laws of :mod:`.mtpa`.
 
 Per step: the torque reference T* asks for the current amplitude I_s = |T*|/k_t (k_t = 1.5 p ψ_f,
 the sign carried by i_q); the MTPA law gives the angle θ from the q axis, i_d* = -I_s sin θ,
@@ -75,7 +75,7 @@ class FOCParams:
         default=500.0,
     )
     injection_gain: float = quantity(
-        "integrator gain of the angle per unit of normalised gradient d|T|/dθ / |T|",
+        "integrator gain of the angle per unit of the gradient d(T/I)/dθ / k_t (k_t = 1.5 p ψ_f)",
         "rad/s",
         ge=0,
         default=20.0,

@@ -1,10 +1,11 @@
 """Paper 000: model predictive torque control of the induction motor — MPTC, MPTC-DB, DB-MPTC
-(SPEC §3.2), the controller family ``mptc_im``.
+(docs/physics.md#mptc-of-the-induction-motor), the controller family ``mptc_im``.
 
-The controller owns what every strategy shares — the stator-flux estimate (SPEC §2.5), the soft
-start, the zero-vector choice and the command format — and asks its strategy for (vector, duty)
-each step. Strategies are plain objects with ``decide(prediction, torque_ref, flux_ref) ->
-Decision``; :data:`IM_STRATEGIES` lists them in registry order.
+The controller owns what every strategy shares — the stator-flux estimate
+(docs/physics.md#what-the-controller-sees), the soft start, the zero-vector choice and the command
+format — and asks its strategy for (vector, duty) each step. Strategies are plain objects with
+``decide(prediction, torque_ref, flux_ref) -> Decision``; :data:`IM_STRATEGIES` lists them in
+registry order.
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ A0_FORMS = ("derived", "paper_printed")
 
 
 class IMPrediction:
-    """One step's forward-Euler prediction of the IM (SPEC §2.2) from the controller's view.
+    """One step's forward-Euler prediction of the IM (docs/physics.md#induction-motor) from the
+    controller's view.
 
     Precomputes everything that does not depend on the candidate vector, so each candidate costs a
     few complex operations: i(k+1) = i_free + Ts/(σL_s)·u, ψ(k+1) = ψ_free + Ts·u.
@@ -219,7 +221,8 @@ class InductionController(VectorController):
     """Predictive torque controller for the IM: ``step(state k, reference k) -> command k``.
 
     Estimates the stator flux by integrating ψ̂(k+1) = ψ̂(k) + Ts(u(k) - R_s i(k)) with the voltage
-    it actually applied (SPEC §2.5); soft start at start-up only (SPEC §3.2).
+    it actually applied (docs/physics.md#what-the-controller-sees); soft start at start-up only
+    (docs/physics.md#mptc-of-the-induction-motor).
     """
 
     family = "mptc_im"
@@ -239,7 +242,9 @@ class InductionController(VectorController):
         psi = self.psi_hat
         mag = abs(psi)
         if self.soft_start and mag >= self.params.soft_start_flux:
-            self.soft_start = False  # latched off for good (SPEC §3.2)
+            self.soft_start = (
+                False  # latched off for good (docs/physics.md#mptc-of-the-induction-motor)
+            )
         self.est_flux = mag
         self.est_flux_angle = math.atan2(psi.imag, psi.real) % TWO_PI
 

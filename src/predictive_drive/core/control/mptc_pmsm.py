@@ -1,13 +1,14 @@
 """Paper 001: predictive torque control of the PMSM — conventional MPTC and simplified strategies
-1-3 (SPEC §3.3), the controller family ``mptc_pmsm``.
+1-3 (docs/physics.md#mptc-of-the-pmsm), the controller family ``mptc_pmsm``.
 
 The controller sees the measured currents and rotor angle and forms the stator flux and torque with
-its own L_d, L_q, ψ_f (SPEC §2.5). Each candidate vector is predicted with paper 001 eq 1-3 — the
-stator-flux frame, R_s neglected, the rotor frozen over Ts — and its torque from the predicted flux
-with the saliency term (for L_d = L_q this is eq 2 exactly). Cost eq 5, normalised; T* is guarded
-by T_floor because it crosses zero at every load reversal. Candidates are evaluated in ascending
-vector order and the first strict minimum wins. The restricted candidate sets of strategies 2 and 3
-are data (:mod:`.candidates`) that ``predictive-drive analyze`` regenerates from a recording.
+its own L_d, L_q, ψ_f (docs/physics.md#what-the-controller-sees). Each candidate vector is predicted
+with paper 001 eq 1-3 — the stator-flux frame, R_s neglected, the rotor frozen over Ts — and its
+torque from the predicted flux with the saliency term (for L_d = L_q this is eq 2 exactly). Cost eq
+5, normalised; T* is guarded by T_floor because it crosses zero at every load reversal. Candidates
+are evaluated in ascending vector order and the first strict minimum wins. The restricted candidate
+sets of strategies 2 and 3 are data (:mod:`.candidates`) that ``predictive-drive analyze``
+regenerates from a recording.
 """
 
 from __future__ import annotations
@@ -188,7 +189,7 @@ class Simplified1:
 
 class Simplified2:
     """Strategy 2 (paper 001 §4): strategy 1 with 4 candidates above the threshold, chosen by the
-    6-sector of ψ̂_s and the sign of the torque error (SPEC §3.3 table)."""
+    6-sector of ψ̂_s and the sign of the torque error (paper 001 Tables 3-4)."""
 
     name = "simplified2"
 

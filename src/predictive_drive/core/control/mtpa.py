@@ -189,7 +189,7 @@ class MTPAContext(NamedTuple):
     psi_f: float  #: Wb (the formula only)
     amplitude: float  #: dither amplitude A, rad
     samples: int  #: M, samples per dither period
-    gain: float  #: integrator gain, rad/s per unit of normalised gradient
+    gain: float  #: integrator gain, rad/s per unit of gradient d(T/I)/dθ / k_t
     lowpass_hz: float  #: demodulated-gradient low-pass cutoff, Hz
     form: str  #: one of INJECTION_FORMS
     min_speed: float  #: rad/s below which θ0 holds (the flux balance divides by ω_e)

@@ -1,4 +1,4 @@
-"""Outer speed loop: discrete PI with clamping anti-windup (SPEC §3.1)."""
+"""Outer speed loop: discrete PI with clamping anti-windup (docs/physics.md#speed-pi)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ SPEED_LOOPS = ("one_step", "immediate")
 class SpeedPIParams:
     """Speed PI and reference profile.
 
-    kp in N·m/(rad/s), ki in N·m/(rad/s)/s (the papers give no units; SPEC §3.1 default: the error in
+    kp in N·m/(rad/s), ki in N·m/(rad/s)/s (the papers give no units; docs/physics.md#speed-pi: the error in
     rad/s and the integrator advancing by ki·Ts·e per step). torque_limit in N·m, flux_ref in Wb,
     speed_times in s, speed_values_rpm in r/min (converted to rad/s internally).
     """

@@ -1,5 +1,5 @@
 """Induction motor: parameters with units and the continuous-time dynamics (paper 000 eq 1-3,
-SPEC §2.2).
+docs/physics.md#induction-motor).
 
 The dynamics signature is ``f(t, x, u, c)`` (python-control style): ``x`` the state tuple (indices
 in :data:`IM_STATE`), ``u = (u_s, t_load)`` with u_s the stator voltage space vector in αβ (V,
@@ -32,7 +32,8 @@ Input = tuple[complex, float]  #: u_s (αβ, V), T_L (N·m)
 
 @dataclass(frozen=True)
 class InductionMotor:
-    """Induction motor, αβ stator-current/stator-flux model (paper 000 eq 1-3, SPEC §2.2).
+    """Induction motor, αβ stator-current/stator-flux model (paper 000 eq 1-3,
+    docs/physics.md#induction-motor).
 
     ==========  ========  =====================================
     field       unit      meaning
@@ -121,7 +122,8 @@ def induction_dynamics(
     u: tuple[complex, float],
     c: InductionCoefficients,
 ) -> tuple[complex, complex, float, float]:
-    """dx/dt of the IM plus mechanics (SPEC §2.2, §2.4); ω_r = p·ω_m."""
+    """dx/dt of the IM plus mechanics (docs/physics.md#induction-motor;
+    docs/physics.md#mechanics-and-load); ω_r = p·ω_m."""
     i, psi, w, _ = x
     u_s, t_load = u
     wr = c.p * w
@@ -186,7 +188,8 @@ _exp, _sqrt = cmath.exp, cmath.sqrt
 def induction_exact(
     t: float, x: IMState, u: Input, c: InductionCoefficients, h: float, n: int
 ) -> IMState:
-    """The IM over [t, t+h] in ``n`` sub-steps, each solved exactly for ω frozen (SPEC §2.4).
+    """The IM over [t, t+h] in ``n`` sub-steps, each solved exactly for ω frozen
+    (docs/physics.md#mechanics-and-load).
 
     With ω frozen the electrical model is linear, d[i, ψ]/dt = A·[i, ψ] + B·u_s with
     A = [[a, b], [-R_s, 0]], a = a_ii + jω_r, b = b_iψ - jω_r/(σL_s). Its equilibrium is

@@ -1,5 +1,5 @@
 """Permanent-magnet synchronous motor in the rotor dq frame: parameters with units and the
-continuous-time dynamics (SPEC §2.3; papers 001, 002).
+continuous-time dynamics (docs/physics.md#pmsm; papers 001, 002).
 
 The dynamics signature is ``f(t, x, u, c)``: ``x`` the state tuple (indices in
 :data:`PMSM_STATE`), ``u = (u_s, t_load)`` with u_s the stator voltage in αβ (V, complex) and
@@ -26,7 +26,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class PMSM:
-    """Permanent-magnet synchronous motor in the rotor dq frame (SPEC §2.3; papers 001, 002).
+    """Permanent-magnet synchronous motor in the rotor dq frame (docs/physics.md#pmsm; papers 001, 002).
 
     Surface-mounted when l_d == l_q, interior (salient) when l_d < l_q.
 
@@ -106,7 +106,7 @@ PMSM_STATE = PMSMStateIndex()
 
 
 def pmsm_torque(i_dq: complex, c: PMSMCoefficients) -> float:
-    """T_e = (3/2) p [ψ_f i_q + (L_d - L_q) i_d i_q], N·m (SPEC §2.3)."""
+    """T_e = (3/2) p [ψ_f i_q + (L_d - L_q) i_d i_q], N·m (docs/physics.md#pmsm)."""
     return c.torque_k * i_dq.imag * (c.psi_f + (c.l_d - c.l_q) * i_dq.real)
 
 
@@ -116,8 +116,9 @@ def pmsm_dynamics(
     u: tuple[complex, float],
     c: PMSMCoefficients,
 ) -> tuple[complex, float, float]:
-    """dx/dt of the PMSM plus mechanics (SPEC §2.3, §2.4). u_s is in αβ; it is turned into the rotor
-    frame with θ_e = p·θ_m: u_d + j·u_q = u_s·e^{-jθ_e}."""
+    """dx/dt of the PMSM plus mechanics (docs/physics.md#pmsm; docs/physics.md#mechanics-and-load).
+    u_s is in αβ; it is turned into the rotor frame with θ_e = p·θ_m: u_d + j·u_q =
+    u_s·e^{-jθ_e}."""
     i, w, th = x
     u_s, t_load = u
     the = c.p * th

@@ -1,0 +1,116 @@
+"""The project's documentation stays true to the code: every test it names exists, every link
+between its files (and every anchor) resolves, the topic table is the code's, nothing cites a
+document outside the repository, and the README is short and opens with its two commands."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+from predictive_drive.interface import TOPICS
+
+pytestmark = pytest.mark.core
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = sorted((ROOT / "docs").glob("*.md"))
+PAGES = [ROOT / "README.md", *DOCS]
+
+
+def test_the_docs_are_there():
+    names = {p.name for p in DOCS}
+    assert {"physics.md", "ros.md", "recordings.md", "reproduction.md", "performance.md",
+            "architecture.md"} <= names  # fmt: skip
+
+
+def _tests_defined() -> set[str]:
+    out = set()
+    for f in (ROOT / "test").glob("test_*.py"):
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.FunctionDef) and node.name.startswith("test_"):
+                out.add(node.name)
+    return out
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_test_a_page_names_exists(page):
+    named = set(re.findall(r"\btest_[a-z0-9_]+\b", page.read_text()))
+    files = {p.stem for p in (ROOT / "test").glob("test_*.py")}
+    missing = sorted(n for n in named - _tests_defined() if n not in files)
+    assert not missing, f"{page.name} names tests that do not exist: {missing}"
+
+
+def anchor(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading."""
+    a = heading.strip().lower()
+    a = re.sub(r"[^\w\- ]", "", a)
+    return a.replace(" ", "-")
+
+
+def _anchors(page: Path) -> set[str]:
+    return {anchor(h) for h in re.findall(r"^#+ (.+)$", page.read_text(), re.MULTILINE)}
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_link_and_anchor_resolves(page):
+    text = page.read_text()
+    bad = []
+    for target in re.findall(r"\]\(([^)]+)\)", text):
+        if re.match(r"[a-z]+://", target):
+            continue
+        path, _, frag = target.partition("#")
+        dest = (page.parent / path).resolve() if path else page
+        if not dest.exists():
+            bad.append(f"{target}: no file {dest}")
+        elif frag and dest.suffix == ".md" and frag not in _anchors(dest):
+            bad.append(f"{target}: no heading with anchor #{frag} in {dest.name}")
+    assert not bad, bad
+
+
+def test_code_and_tests_cite_docs_that_exist():
+    """Every `docs/x.md#anchor` cited in src/ and test/ resolves; nothing cites the steering
+    documents outside the repository."""
+    bad = []
+    files = [*ROOT.glob("src/**/*.py"), *ROOT.glob("src/**/*.json"), *ROOT.glob("test/*.py")]
+    for f in files:
+        if f.name == "test_docs.py":
+            continue  # this checker names the patterns it looks for
+        text = f.read_text()
+        if re.search(r"SPEC §|shared/(SPEC|ARCHITECTURE|STYLE)", text):
+            bad.append(f"{f.name}: cites a document outside the repository")
+        for doc, frag in re.findall(r"docs/([a-z_]+\.md)(?:#([a-z0-9\-]+))?", text):
+            dest = ROOT / "docs" / doc
+            if not dest.exists():
+                bad.append(f"{f.name}: docs/{doc} does not exist")
+            elif frag and frag not in _anchors(dest):
+                bad.append(f"{f.name}: docs/{doc}#{frag}: no such heading")
+    assert not bad, bad
+
+
+def test_the_topic_table_is_the_codes():
+    """docs/ros.md's table: every topic of the interface, with its type and, for the labelled
+    arrays, exactly the fields the code sends, in order."""
+    text = (ROOT / "docs" / "ros.md").read_text().split("## Topics", 1)[1].split("\n## ", 1)[0]
+    rows = {
+        m.group(1): m.group(0) for m in re.finditer(r"^\| `(/[^`]+)` \|.*$", text, re.MULTILINE)
+    }
+    assert set(rows) == {t.name for t in TOPICS.values()}
+    for t in TOPICS.values():
+        row = rows[t.name]
+        assert t.type.replace("/msg/", "/") in row, (t.name, t.type)
+        if t.fields:
+            listed = ",".join(re.findall(r"`([^`/]+)`", row.split("|")[5]))
+            listed = listed.replace(",,", ",")
+            assert listed.split(",")[: len(t.fields)] == list(t.fields), t.name
+
+
+def test_the_readme_is_short_and_opens_with_its_two_commands():
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= 150, len(lines)
+    head = "\n".join(lines[:8])
+    assert "make run" in head and "make test" in head
+    makefile = (ROOT / "Makefile").read_text()
+    assert re.search(r"^run: ", makefile, re.M) and re.search(r"^test: ", makefile, re.M)
+    assert "make test" in (ROOT / ".ci" / "run").read_text()
