@@ -43,7 +43,8 @@ class FoxgloveClient:
         self._subs: dict[int, str] = {}  #: subscription id → topic
 
     def pump(self, seconds: float, until=None) -> Received:
-        """Read frames for ``seconds`` (or until ``until(received)`` is true)."""
+        """Read frames until ``until(received)`` is true (failing if it is not within
+        ``seconds``), or for ``seconds``."""
         end = time.monotonic() + seconds
         self.ws.settimeout(0.2)
         while time.monotonic() < end and not (until and until(self.got)):
@@ -57,6 +58,7 @@ class FoxgloveClient:
                 self._text(json.loads(data))
             elif op == websocket.ABNF.OPCODE_BINARY:
                 self._binary(data)
+        assert until is None or until(self.got), f"not received within {seconds} s"
         return self.got
 
     def _text(self, msg: dict) -> None:

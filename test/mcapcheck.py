@@ -5,17 +5,21 @@ from __future__ import annotations
 
 def mcap_file_order(path):
     """(channel topic, log time, sequence) of every message in the order the file holds them,
-    read as a stream (no index, no sorting)."""
+    read as a stream (no index, no sorting); a file cut short, up to its last whole chunk."""
+    from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Message
     from mcap.stream_reader import StreamReader
 
     topics, out = {}, []
     with open(path, "rb") as f:
-        for r in StreamReader(f, skip_magic=False).records:
-            if isinstance(r, Channel):
-                topics[r.id] = r.topic
-            elif isinstance(r, Message):
-                out.append((topics[r.channel_id], r.log_time, r.sequence))
+        try:
+            for r in StreamReader(f, skip_magic=False).records:
+                if isinstance(r, Channel):
+                    topics[r.id] = r.topic
+                elif isinstance(r, Message):
+                    out.append((topics[r.channel_id], r.log_time, r.sequence))
+        except EndOfFile:
+            pass
     return out
 
 

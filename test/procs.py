@@ -12,20 +12,26 @@ from contextlib import contextmanager
 from pathlib import Path
 
 
-def descendants(pid: int) -> list[int]:
-    """PIDs whose parent chain leads to ``pid`` (from /proc)."""
-    parents = {}
+def parents() -> dict[int, int]:
+    """Every process's parent PID (from /proc)."""
+    out = {}
     for d in Path("/proc").iterdir():
         if d.name.isdigit():
             try:
                 stat = (d / "stat").read_text()
             except OSError:
                 continue
-            parents[int(d.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+            out[int(d.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    return out
+
+
+def descendants(pid: int) -> list[int]:
+    """PIDs whose parent chain leads to ``pid`` (from /proc)."""
+    parents_ = parents()
     out, todo = [], [pid]
     while todo:
         p = todo.pop()
-        kids = [c for c, pp in parents.items() if pp == p]
+        kids = [c for c, pp in parents_.items() if pp == p]
         out += kids
         todo += kids
     return out

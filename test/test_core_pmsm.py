@@ -102,7 +102,24 @@ def test_halving_the_substep_changes_t_rmse_by_less_than_one_percent(ipmsm_short
     assert abs(a - b) < 0.01 * a
 
 
+class View:
+    """The machine's true state at step k, from the currents and angle alone (never the
+    controller's estimate): stator flux in αβ (ψ_dq = L_d·i_d + ψ_f + j·L_q·i_q, rotated by θ_e),
+    its angle and amplitude, and the torque (paper 001 eq 1-3)."""
+
+    def __init__(self, c: PMSMCoefficients, i_dq: complex, theta_e: float) -> None:
+        self.c, self.theta_e = c, theta_e
+        self.psi_ab = complex(c.l_d * i_dq.real + c.psi_f, c.l_q * i_dq.imag) * cmath.exp(
+            1j * theta_e
+        )
+        self.psi = abs(self.psi_ab)
+        self.theta_psi = cmath.phase(self.psi_ab) % (2 * math.pi)
+        self.te = pmsm_torque(i_dq, c)
+
+
 def random_views(motor, n, seed=3):
+    """(controller's prediction, true view, T*, ψ*) at random states; ψ* far below the true |ψ|
+    or 1 % either side of it (a flux error of exactly zero: test_flux_error_zero_counts_...)."""
     rng = random.Random(seed)
     c = PMSMCoefficients.of(motor)
     for _ in range(n):
@@ -111,26 +128,26 @@ def random_views(motor, n, seed=3):
         i_ab = i * cmath.exp(1j * theta_e)
         m = PMSMPrediction(c, TS, 0.05 * motor.rated_torque, 0.01 * motor.rated_torque)
         m.prepare(i_ab.real, i_ab.imag, theta_e, U_DC)
-        yield m, theta_e, rng.uniform(-30, 30), rng.choice([0.3, m.psi, m.psi * 1.01])
+        v = View(c, i, theta_e)
+        yield m, v, rng.uniform(-30, 30), rng.choice([0.3, v.psi * 0.99, v.psi * 1.01])
 
 
-def vector_form(m, theta_e, n):
+def vector_form(v: View, n: int) -> tuple[float, float]:
     """Independent prediction: ψ(k+1) = ψ(k) + V·Ts in αβ (R_s neglected, rotor frozen), torque from
     the predicted flux in the rotor frame."""
-    c = m.c
-    rot = cmath.exp(1j * theta_e)
-    psi = m.psi * cmath.exp(1j * m.theta_psi)
-    psi1 = (psi + vector_voltages(U_DC)[n] * TS) / rot
+    c = v.c
+    psi1 = (v.psi_ab + vector_voltages(U_DC)[n] * TS) / cmath.exp(1j * v.theta_e)
     i_d, i_q = (psi1.real - c.psi_f) / c.l_d, psi1.imag / c.l_q
     return pmsm_torque(complex(i_d, i_q), c), abs(psi1)
 
 
 @pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
 def test_eq1_3_prediction_equals_the_vector_form(motor):
-    for m, theta_e, _, _ in random_views(motor, 200):
+    for m, v, _, _ in random_views(motor, 200):
+        assert (m.te, m.psi) == (pytest.approx(v.te, rel=1e-9, abs=1e-9), pytest.approx(v.psi))
         for n in range(7):
             t1, p1 = m.predict(n)
-            t2, p2 = vector_form(m, theta_e, n)
+            t2, p2 = vector_form(v, n)
             assert t1 == pytest.approx(t2, rel=1e-9, abs=1e-9)
             assert p1 == pytest.approx(p2, rel=1e-12)
 
@@ -154,34 +171,34 @@ def test_eq2_literal_for_the_surface_machine():
             assert m.predict(n)[0] == pytest.approx(t, rel=1e-12)
 
 
-def candidates_of(name, m, t_ref, psi_ref):
+def candidates_of(name, v, threshold, t_ref, psi_ref):
     """What the strategy may choose from, per docs/physics.md#mptc-of-the-pmsm (None: the zero
     vector, nothing evaluated)."""
-    d_t = t_ref - m.te
-    if name != "mptc" and abs(d_t) <= m.threshold:
+    d_t = t_ref - v.te
+    if name != "mptc" and abs(d_t) <= threshold:
         return None
     if name in ("mptc", "simplified1"):
         return tuple(range(7))
     if name == "simplified2":
-        return TABLES.six[0 if d_t > 0 else 1][sector(m.theta_psi, 6)]
-    f = 0 if psi_ref - m.psi >= 0 else 1
-    return TABLES.twelve[0 if d_t > 0 else 1][f][sector(m.theta_psi, 12)]
+        return TABLES.six[0 if d_t > 0 else 1][sector(v.theta_psi, 6)]
+    f = 0 if psi_ref - v.psi >= 0 else 1
+    return TABLES.twelve[0 if d_t > 0 else 1][f][sector(v.theta_psi, 12)]
 
 
 @pytest.mark.parametrize("name", ["mptc", "simplified1", "simplified2", "simplified3"])
 @pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
 def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
     s = make_strategy("mptc_pmsm", name)
-    for m, theta_e, t_ref, psi_ref in random_views(motor, 300):
+    for m, v, t_ref, psi_ref in random_views(motor, 300):
         d = s.decide(m, t_ref, psi_ref)
-        cands = candidates_of(name, m, t_ref, psi_ref)
+        cands = candidates_of(name, v, m.threshold, t_ref, psi_ref)
         if cands is None:
             assert (d.vector, d.cal) == (0, 0)
             continue
         norm_t = max(abs(t_ref), m.t_floor)
         costs = []
         for n in cands:
-            t1, p1 = vector_form(m, theta_e, n)
+            t1, p1 = vector_form(v, n)
             costs.append(math.sqrt(((t1 - t_ref) / norm_t) ** 2 + ((p1 - psi_ref) / psi_ref) ** 2))
         best = cands[int(np.argmin(costs))]  # first minimum, ascending vector order
         assert d.vector == best, (name, cands, costs)
@@ -236,12 +253,12 @@ def test_threshold_is_inclusive_and_skips_all_predictions():
 def test_torque_reference_zero_is_guarded_by_t_floor():
     """T* = 0 at a load reversal: the torque term divides by T_floor, not by zero."""
     s = make_strategy("mptc_pmsm", "mptc")
-    for m, theta_e, _, _ in random_views(SPMSM, 50):
+    for m, v, _, _ in random_views(SPMSM, 50):
         d = s.decide(m, 0.0, 0.3)
         costs = [
             math.hypot(
-                vector_form(m, theta_e, n)[0] / m.t_floor,
-                (vector_form(m, theta_e, n)[1] - 0.3) / 0.3,
+                vector_form(v, n)[0] / m.t_floor,
+                (vector_form(v, n)[1] - 0.3) / 0.3,
             )
             for n in range(7)
         ]

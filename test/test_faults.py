@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import resource
 import shutil
+import signal
 import stat
 import subprocess
 import sys
@@ -15,7 +17,6 @@ from pathlib import Path
 import pytest
 
 from predictive_drive.api.run import run, run_inprocess_to_bag
-from predictive_drive.bag import LOGS_DIR
 from predictive_drive.config import config_dir, load_scenario
 from predictive_drive.errors import BagError, ConfigError
 from predictive_drive.readback import read_bag
@@ -92,9 +93,21 @@ def test_a_duration_shorter_than_one_step_is_refused_on_the_command_line():
         run("im_short", duration=1e-6, engine="inprocess", out="/nonexistent/never")
 
 
-def test_a_switch_to_the_strategy_in_force_is_refused(tmp_path):
-    with pytest.raises(ConfigError, match="--switch 0.1:db_mptc: db_mptc is already"):
-        run("im_short", switches=[(0.1, "db_mptc")], engine="inprocess", out=tmp_path / "b")
+@pytest.mark.parametrize("engine", ["inprocess", "composed", "ros"])
+@pytest.mark.parametrize(
+    "switch, words",
+    [
+        ((0.1, "db_mptc"), "--switch 0.1:db_mptc: db_mptc is already the strategy then"),
+        ((5.0, "mptc"), r"--switch 5.0:mptc: time must lie in \[0, 0.4\) s"),
+        ((-0.1, "mptc"), r"--switch -0.1:mptc: time must lie in \[0, 0.4\) s"),
+        ((0.1, "dtc"), "--switch 0.1:dtc: unknown strategy; valid: mptc, mptc_db, db_mptc"),
+    ],
+)
+def test_a_switch_the_run_cannot_take_is_refused_on_every_engine(tmp_path, engine, switch, words):
+    """Refused before anything starts (no node, no bag), whichever engine would run it."""
+    with pytest.raises(ConfigError, match=words):
+        run("im_short", duration=0.4, switches=[switch], engine=engine, out=tmp_path / "b")
+    assert not (tmp_path / "b").exists()
 
 
 @pytest.mark.parametrize("engine", ["inprocess", "ros", "composed"])
@@ -129,12 +142,38 @@ def test_out_is_checked_before_anything_starts(tmp_path, engine, case):
     assert sorted(tmp_path.rglob("*")) == before  # nothing started, nothing written
 
 
-def test_json_failure_is_a_json_object(tmp_path):
-    r = cli("run", "nope", "--json", "--engine", "inprocess")
-    assert r.returncode == 2
+#: a failing call of every verb that takes --json: (arguments, error kind, words of the message)
+_JSON_CASES = [
+    (("run", "nope", "--engine", "inprocess"), "ConfigError", "unknown scenario 'nope'"),
+    (("report", "/no/bag"), "BagError", "/no/bag"),
+    (("compare", "/no/a", "/no/b"), "BagError", "/no/a"),
+    (("sweep", "nope"), "ConfigError", "unknown scenario 'nope'"),
+    (("reproduce", "nope"), "UsageError", "invalid choice: 'nope'"),
+    (("analyze", "/no/bag"), "BagError", "/no/bag"),
+    (("replay", "/no/bag"), "BagError", "/no/bag"),
+    (("repair", "/no/bag"), "BagError", "/no/bag"),
+    (("bench", "--steps", "0"), "ConfigError", "--steps 0: must be at least 2000"),
+    (("run", "im_short", "--no-such-option"), "UsageError", "unrecognized arguments"),
+]
+
+
+@pytest.mark.parametrize(
+    "args, kind, words", _JSON_CASES, ids=[" ".join(c[0]) for c in _JSON_CASES]
+)
+def test_json_failure_is_a_json_object_for_every_verb(args, kind, words):
+    """With --json, a failure is one JSON object on stdout (the message also on stderr),
+    exit 2, for every verb that takes --json."""
+    r = cli(*args, "--json")
+    assert r.returncode == 2, r.stderr
     d = json.loads(r.stdout)
-    assert d["kind"] == "ConfigError" and "unknown scenario 'nope'" in d["error"]
-    assert "Traceback" not in r.stderr
+    assert d["kind"] == kind and words in d["error"], d
+    assert f"predictive-drive: error: {d['error']}" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_every_verb_with_json_has_its_failure_case():
+    from predictive_drive.cli import VERBS, _verb
+
+    assert {c[0][0] for c in _JSON_CASES} == {v for v in VERBS if getattr(_verb(v), "JSON", True)}
 
 
 @pytest.fixture(scope="module")
@@ -198,11 +237,11 @@ def test_a_full_disk_in_process_is_a_clear_error(tmp_path):
     )
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr
-    assert f"writing the bag {out} failed (File too large)" in r.stderr or (
-        f"closing the bag {out} failed" in r.stderr
-    )
-    rep = cli("report", str(out))
-    assert "truncated" in rep.stdout or rep.returncode == 2  # never a good bag
+    said = re.search(rf"writing the bag {out} failed \(File too large\) after (\d+) messages; "
+                     r"it has no index", r.stderr)  # fmt: skip
+    assert said, r.stderr
+    rep = cli("report", str(out))  # never presented as a good bag
+    assert rep.returncode == 0 and "the recording is truncated" in rep.stdout, rep.stderr
 
 
 def test_domain_locks_are_open_to_every_user():
@@ -220,14 +259,89 @@ def test_a_bad_domain_id_is_named():
     assert "Traceback" not in r.stderr
 
 
-@pytest.mark.process
-def test_the_node_logs_stay_with_the_bag(tmp_path):
-    """The graph's logs and parameter overrides go into <bag>/logs, no temp folder elsewhere."""
-    import tempfile
+def _cut(bag: Path, dest: Path, keep: int) -> Path:
+    """A copy of ``bag`` whose file keeps its first ``keep`` bytes (a writer killed there)."""
+    shutil.copytree(bag, dest)
+    (f,) = dest.glob("*.mcap")
+    f.write_bytes(f.read_bytes()[:keep])
+    return dest
 
-    before = set(Path(tempfile.gettempdir()).iterdir())
-    r = run("im_short", duration=0.01, engine="ros", out=tmp_path / "b")
-    logs = r.bag / LOGS_DIR
-    assert {p.name for p in logs.iterdir()} >= {"overrides.yaml", "plant.log", "metrics_logger.log"}
-    made = set(Path(tempfile.gettempdir()).iterdir()) - before
-    assert not [p for p in made if p.name.startswith("tmp")]
+
+def test_a_recording_cut_before_its_metrics_window_is_reported_over_what_it_holds(
+    short_bag, tmp_path
+):
+    """Cut a few hundred steps in, before the 0.05 s window starts: report says so and reports
+    over the steps there are (was: a ValueError traceback)."""
+    cut = _cut(short_bag, tmp_path / "cut", 120_000)
+    r = cli("report", str(cut))
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    steps = read_bag(cut)[0].steps
+    assert 0 < steps < 1000  # the window starts at step 1000
+    held = steps * 5e-5
+    assert f"window   0-{held:.4g} s ({steps} steps)" in r.stdout
+    assert f"the recording ends at {held:g} s, inside or before the metrics window 0.05-0.4 s: " \
+        f"the metrics cover 0-{held:g} s" in r.stdout  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "content,words",
+    [
+        (b"", "the file is empty (0 bytes): its writer was killed before it wrote anything"),
+        (b"\x89MCAP0\r\n", "cut short before anything was recorded (8 bytes"),
+        (os.urandom(4096), "not an MCAP file (it does not begin with MCAP's magic bytes)"),
+    ],
+    ids=["empty", "header-only", "random-bytes"],
+)
+@pytest.mark.parametrize("verb", ["report", "replay", "repair", "analyze"])
+def test_a_file_that_is_no_recording_is_called_what_it_is(tmp_path, content, words, verb):
+    f = tmp_path / "x.mcap"
+    f.write_bytes(content)
+    r = cli(verb, str(f), env={**os.environ, "ROS_DOMAIN_ID": "231"})
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert words in r.stderr, r.stderr
+
+
+def test_layout_to_a_path_that_cannot_be_written_is_an_error():
+    r = cli("layout", "--out", "/proc/drive.foxglove.json")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "layout --out /proc/drive.foxglove.json: cannot write it:" in r.stderr
+
+
+def test_repair_without_room_says_the_original_is_intact(short_bag, tmp_path):
+    cut = _cut(short_bag, tmp_path / "cut", 200_000)
+    before = (cut / "short_0.mcap").read_bytes()
+    held = sorted(p.name for p in cut.iterdir())
+    r = subprocess.run(
+        [*CLI, "repair", str(cut)], capture_output=True, text=True, timeout=120,
+        preexec_fn=lambda: (signal.signal(signal.SIGXFSZ, signal.SIG_IGN),
+                            resource.setrlimit(resource.RLIMIT_FSIZE, (50_000, 50_000))),
+    )  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "which failed (File too large); the original is intact: copy the bag to a disk with " \
+        "room and repair the copy" in r.stderr  # fmt: skip
+    assert (cut / "short_0.mcap").read_bytes() == before  # intact
+    assert sorted(p.name for p in cut.iterdir()) == held  # nothing added, nothing removed
+    assert not list(tmp_path.glob(".cut.repair-*"))  # its temporary copy removed
+
+
+def test_ctrl_c_at_any_moment_is_an_exit_status_not_a_traceback(tmp_path):
+    """SIGINT while Python imports the command line and its verbs (it took 0.4 s and gave a
+    KeyboardInterrupt traceback), or while the run goes: exit 130, no traceback. Python's own
+    start-up (before the package's first line, measured here) cannot be helped; the first
+    delay is twice it."""
+    import time
+
+    t0 = time.perf_counter()
+    # what Python does before the package's first line (which takes Ctrl-C over)
+    subprocess.run([sys.executable, "-c", "import os, signal"], check=True, timeout=60)
+    startup = time.perf_counter() - t0
+    for n, delay in enumerate((2 * startup, 3 * startup, 0.2, 0.3, 0.5, 1.0)):
+        # a run that takes far longer than the delay: the signal always finds it running
+        p = subprocess.Popen([*CLI, "run", "im_short", "--engine", "inprocess", "--duration",
+                              "60", "--out", str(tmp_path / f"b{n}")], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)  # fmt: skip
+        time.sleep(delay)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+        assert "Traceback" not in err and "KeyboardInterrupt" not in err, (delay, err)
+        assert p.returncode == 130, (delay, p.returncode, err)

@@ -4,6 +4,7 @@ of hanging CI."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -158,6 +159,11 @@ def test_timed_switch_through_parameter_service(tmp_path, engine):
     # numbers per channel
     backwards, bad_seq, n = ordering_faults(next(r.bag.glob("*.mcap")))
     assert (backwards, bad_seq) == (0, []) and n > 24000
+    # and the run is the in-process one switched at that step, bit for bit
+    from predictive_drive.core.runner import run_inprocess
+
+    sc = load_scenario("im_short", strategy="mptc", duration=0.4)
+    assert_same_run(tr, run_inprocess(sc, switches=[(1000, "db_mptc")]))
 
 
 def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_run, tmp_path):
@@ -188,9 +194,11 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
         assert ro.returncode == 2 and "read-only" in ro.stderr.lower(), (name, ro.stderr)
     sim = param("set", "plant", "use_sim_time", "false")
     assert sim.returncode == 2 and "use_sim_time must stay true" in sim.stderr
-    missing = param("get", "plant", "no_such_param")
-    assert missing.returncode == 2 and "has no parameter 'no_such_param'" in missing.stderr
-    assert "Traceback" not in missing.stderr and "u_dc" in missing.stderr  # lists what there is
+    for action in (("get", "plant", "no_such_param"), ("set", "plant", "no_such_param", "1")):
+        missing = param(*action)
+        assert missing.returncode == 2, action
+        assert "node /drive/plant has no parameter 'no_such_param'" in missing.stderr, action
+        assert "Traceback" not in missing.stderr and "u_dc" in missing.stderr  # lists them
     time.sleep(0.5)
     nodes = node_pids(line)
     assert_placed(nodes)
@@ -208,7 +216,7 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     stopped = re.fullmatch(
         r"ERROR: stopped: (\d+) of 600000 steps; over the run .*", info.custom["outcome"]
     )
-    assert stopped and int(stopped[1]) in (tr.steps, tr.steps + 1)
+    assert stopped and int(stopped[1]) == info.counts["/drive/command"], info.custom["outcome"]
 
 
 def assert_placed(nodes: dict[str, int]) -> None:
@@ -228,32 +236,72 @@ def assert_placed(nodes: dict[str, int]) -> None:
             assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ
 
 
-def test_graph_run_rejects_a_switch_outside_the_run_before_starting(tmp_path):
-    with pytest.raises(ConfigError, match=r"--switch 5.0:db_mptc: time must lie in \[0, 0.4\) s"):
-        run("im_short", duration=0.4, switches=[(5.0, "db_mptc")], out=tmp_path / "b")
-    assert not (tmp_path / "b").exists()
+def wait_recorded(bag: Path, chunks: int = 1, p: subprocess.Popen | None = None) -> None:
+    """Wait (up to 120 s) until the bag's file holds ``chunks`` written chunks (~500 steps
+    each): the drive has run that far, whatever the machine's speed."""
+    deadline = time.monotonic() + 120
+    while True:
+        files = list(bag.glob("*.mcap"))
+        if files and files[0].stat().st_size > 260_000 * chunks:
+            return
+        assert p is None or p.poll() is None, p.communicate()
+        assert time.monotonic() < deadline, "the run did not get that far"
+        time.sleep(0.05)
 
 
-def started_recording(cli_run, bag: Path) -> tuple[subprocess.Popen[str], dict[str, int]]:
-    """Start a 4 s im_short run into ``bag``; return (launcher, node PIDs) once it records."""
-    p, line = cli_run("im_short", "--duration", "4", "--out", str(bag))
-    deadline = time.monotonic() + 60
-    while not (bag / "metadata.yaml").exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
+def started_recording(
+    cli_run, bag: Path, *args: str
+) -> tuple[subprocess.Popen[str], dict[str, int]]:
+    """Start a long im_paper run into ``bag``; return (launcher, node PIDs) once it has
+    recorded a chunk (so a fault hits a drive that is running)."""
+    p, line = cli_run("im_paper", "--duration", "4", "--out", str(bag), *args)
+    wait_recorded(bag, p=p)
     return p, node_pids(line)
+
+
+def wait_logged(bag: Path, node: str, text: str) -> None:
+    """Wait (up to 120 s) until ``node``'s log says ``text``."""
+    log = bag / "logs" / f"{node}.log"
+    deadline = time.monotonic() + 120
+    while not (log.exists() and text in log.read_text(errors="replace")):
+        assert time.monotonic() < deadline, f"{node} never said {text!r}"
+        time.sleep(0.05)
+
+
+def read_until(p: subprocess.Popen, text: str, stream: str = "stderr") -> str:
+    """Read the child's ``stream`` up to the line holding ``text`` (EOF fails)."""
+    while line := getattr(p, stream).readline():
+        if text in line:
+            return line
+    raise AssertionError(f"the command ended without saying {text!r}")
+
+
+def node_said(bag: Path, node: str) -> tuple[str, int] | None:
+    """(signal, step) from the node's 'stopped by SIG... at step k' line, if it wrote one."""
+    found = re.search(r"^stopped by (SIG\w+) at step (-?\d+)$",
+                      (bag / "logs" / f"{node}.log").read_text(), re.M)  # fmt: skip
+    return (found[1], int(found[2])) if found else None
 
 
 def test_killed_peer_ends_run_with_clear_error_and_readable_bag(cli_run, tmp_path):
     bag = tmp_path / "killed"
     p, nodes = started_recording(cli_run, bag)
-    time.sleep(1.0)  # let it run a little
+    t0 = time.monotonic()
     os.kill(nodes["torque_controller"], signal.SIGKILL)
     _, err = p.communicate(timeout=60)
+    took = time.monotonic() - t0
     assert p.returncode == 2
-    assert "node torque_controller" in err and "killed by signal 9" in err
+    assert "node torque_controller" in err and "killed by signal 9 (SIGKILL)" in err
     assert all(ended(pid) for pid in nodes.values())
     tr, info = read_bag(bag)
     assert info.complete and tr.steps > 0
+    # the survivors were told to finish quickly (SIGTERM): they do not wait the 20 s their
+    # publishers would for acknowledgements the dead node never sends
+    from predictive_drive.ros.node_base import FINISH_TIMEOUT
+
+    assert node_said(bag, "plant")[0] == "SIGTERM" and took < FINISH_TIMEOUT, took
+    # and nothing the plant published is missing from the bag
+    assert info.counts["/drive/state"] == node_said(bag, "plant")[1] + 1
 
 
 def test_nodes_of_a_launcher_killed_outright_end_themselves(cli_run, tmp_path):
@@ -261,7 +309,6 @@ def test_nodes_of_a_launcher_killed_outright_end_themselves(cli_run, tmp_path):
     orphaned, end the run themselves and the logger closes the bag."""
     bag = tmp_path / "orphaned"
     p, nodes = started_recording(cli_run, bag)
-    time.sleep(0.5)
     os.kill(p.pid, signal.SIGKILL)
     p.wait(timeout=10)
     deadline = time.monotonic() + 30
@@ -287,18 +334,19 @@ SWITCHES = {
 }
 
 
+@pytest.mark.parametrize("engine", ["ros", "composed"])
 @pytest.mark.parametrize("family", SWITCHES)
-def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path, family):
-    """The PMSM families switch strategy through the parameter service like the IM one;
-    replaying the recorded switch step in-process gives the same sequences bit for bit (for
-    field-oriented control, its diagnostics among them)."""
+def test_pmsm_graph_switches_live_and_equals_inprocess(tmp_path, family, engine):
+    """The PMSM families switch strategy through the parameter service like the IM one, in
+    separate processes and composed; replaying the recorded switch step in-process gives the
+    same sequences bit for bit (for field-oriented control, its diagnostics among them)."""
     from predictive_drive.core.runner import run_inprocess
 
     scenario, start, at, to, steps, field = SWITCHES[family]
     r = run(
         scenario,
         duration=0.3,
-        engine="ros",
+        engine=engine,
         strategy=start,
         switches=[(at, to)],
         out=tmp_path / "b",
@@ -374,7 +422,8 @@ def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
             "metrics_logger": {"duration": 0.05, "bag": str(tmp_path / "late"), "strategy": "mptc"},
         }
         p = composed_run(params, domain)
-        time.sleep(3.0)
+        said = read_until(p, "waits for the strategy switch", stream="stdout")
+        assert "state 500 waits for the strategy switch scheduled at step 500" in said, said
         assert p.poll() is None, p.communicate()[0]  # waiting at step 500
         setter = subprocess.run(
             [*CLI, "param", "set", "torque_controller", "strategy", "db_mptc"],
@@ -404,22 +453,21 @@ def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
 
 
 def test_a_stalled_recorder_stops_the_run_with_every_step_recorded(cli_run, tmp_path):
-    """The logger stopped (SIGSTOP) for 5 s with --peer-timeout 3: the plant waits for it
-    (back-pressure), then ends the run naming it; when it goes on it takes what was in flight
-    and closes the bag: every state the plant published, and every command, is in it."""
+    """The logger stopped (SIGSTOP) with --peer-timeout 3 while the drive runs: the plant waits
+    for it (back-pressure), then ends the run, and the launcher names the stopped logger as the
+    cause; when it goes on it takes what was in flight and closes the bag: every state the plant
+    published, and every command, is in it."""
     bag = tmp_path / "stall"
-    p, line = cli_run("im_short", "--duration", "30", "--peer-timeout", "3", "--out", str(bag))
-    nodes = node_pids(line)
-    deadline = time.monotonic() + 60
-    while not (bag / "metadata.yaml").exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    time.sleep(1.0)
+    p, nodes = started_recording(cli_run, bag, "--peer-timeout", "3")
     os.kill(nodes["metrics_logger"], signal.SIGSTOP)
-    time.sleep(5.0)
-    os.kill(nodes["metrics_logger"], signal.SIGCONT)
+    try:  # the plant waits 3 s for it, then gives up (and waits for what it sent to be taken)
+        wait_logged(bag, "plant", "the recorder is stalled")
+    finally:
+        os.kill(nodes["metrics_logger"], signal.SIGCONT)
     _, err = p.communicate(timeout=120)
     assert p.returncode == 2
-    assert "node plant" in err and "failed first" in err
+    assert f"node metrics_logger (pid {nodes['metrics_logger']}) was stopped by a signal" in err
+    assert "plant timed out waiting for it" in err
     assert "the recorder /drive/metrics_logger has written every step up to" in err
     assert "the recorder is stalled" in err and "was closed with" in err
     held = int(re.search(r"the drive waits at step (\d+)", err).group(1))
@@ -437,7 +485,6 @@ def test_a_killed_recorder_is_said_and_repair_restores_the_bag(cli_run, tmp_path
 
     bag = tmp_path / "killed_logger"
     p, nodes = started_recording(cli_run, bag)
-    time.sleep(1.0)
     os.kill(nodes["metrics_logger"], signal.SIGKILL)
     _, err = p.communicate(timeout=120)
     assert p.returncode == 2
@@ -537,3 +584,171 @@ def test_the_immediate_speed_loop_through_the_graph_equals_inprocess(tmp_path):
     assert info.complete and tr.steps == ref.steps == 1000
     assert_same_run(tr, ref)
     assert tr.reference[0][2] != 0.0  # T* from state 0 applies at step 0
+
+
+def test_a_terminated_logger_closes_its_bag_and_the_run_stops_at_once(cli_run, tmp_path):
+    """SIGTERM to the metrics logger alone: it stops announcing /drive/recorded (the plant
+    holds within 1,000 steps), takes everything in flight, closes its bag, and the launcher
+    ends the run at once naming it; every state the plant published is in the bag."""
+    bag = tmp_path / "term"
+    p, nodes = started_recording(cli_run, bag)
+    os.kill(nodes["metrics_logger"], signal.SIGTERM)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 2, err
+    assert (
+        f"node metrics_logger (pid {nodes['metrics_logger']}) was stopped from outside by "
+        f"SIGTERM at step"
+    ) in err and "the run was stopped" in err
+    tr, info = read_bag(bag)
+    assert info.complete and 0 < tr.steps < 80000
+    assert f"was closed with {tr.steps} steps" in err
+    _, published = node_said(bag, "plant")  # the launcher then stopped the plant
+    assert info.counts["/drive/state"] == published + 1  # states 0..published: nothing lost
+    assert all(ended(pid) for pid in nodes.values())
+
+
+def test_a_stopped_controller_is_named_not_the_peer_that_timed_out(cli_run, tmp_path):
+    """SIGSTOP of the torque controller past the peer timeout: its peers time out waiting for
+    it, and the launcher names the stopped node as the cause."""
+    bag = tmp_path / "stopped"
+    p, nodes = started_recording(cli_run, bag, "--peer-timeout", "3")
+    os.kill(nodes["torque_controller"], signal.SIGSTOP)
+    try:  # its peers wait 3 s for it, then give up
+        wait_logged(bag, "plant", "from /drive/torque_controller within 3.0 s")
+    finally:
+        os.kill(nodes["torque_controller"], signal.SIGCONT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 2
+    first = err.splitlines()[0]
+    assert (
+        f"node torque_controller (pid {nodes['torque_controller']}) was stopped by a signal"
+        in first
+    ), err
+    assert "timed out waiting for it" in first and "failed first" not in first
+    assert read_bag(bag)[1].complete
+
+
+def ctrl_c_while_closing(
+    cli_run, bag: Path, presses: int
+) -> tuple[subprocess.Popen[str], dict[str, int], str]:
+    """A recording run given Ctrl-C ``presses`` times (2 or 3) while its logger is held by
+    SIGSTOP (so the bag is still being closed), then let go; (launcher, node PIDs, stderr)."""
+    p, nodes = started_recording(cli_run, bag)
+    os.kill(nodes["metrics_logger"], signal.SIGSTOP)
+    try:
+        os.kill(p.pid, signal.SIGINT)
+        read_until(p, "interrupted: the nodes finish what is in flight")
+        os.kill(p.pid, signal.SIGINT)
+        read_until(p, "interrupted again")
+        if presses == 3:
+            os.kill(p.pid, signal.SIGINT)
+            _, err = p.communicate(timeout=120)
+    finally:
+        os.kill(nodes["metrics_logger"], signal.SIGCONT)
+    if presses == 2:
+        _, err = p.communicate(timeout=120)
+    return p, nodes, err
+
+
+def test_a_repeated_ctrl_c_says_what_is_true_when_the_command_exits(cli_run, tmp_path):
+    """Ctrl-C twice while the bag is still being closed (the logger held by SIGSTOP so that it
+    is): the nodes are told to finish quickly and the command says the bag was closed, with
+    the steps it holds. Three times: it leaves them closing and says so; they close the bag on
+    their own."""
+    bag = tmp_path / "twice"
+    p, nodes, err = ctrl_c_while_closing(cli_run, bag, presses=2)
+    assert p.returncode == 130
+    tr, info = read_bag(bag)
+    assert info.complete and f"the bag {bag.resolve()} was closed with {tr.steps} steps" in err
+    assert all(ended(pid) for pid in nodes.values())
+
+    bag = tmp_path / "thrice"
+    p, nodes, err = ctrl_c_while_closing(cli_run, bag, presses=3)
+    assert p.returncode == 130
+    said = re.search(
+        r"metrics_logger \(pid \d+\) is still closing the bag .* \((\d+) steps so far", err
+    )
+    assert said and "it is complete when that process ends" in err, err
+    deadline = time.monotonic() + 90
+    while not all(ended(pid) for pid in nodes.values()):  # they end on their own
+        assert time.monotonic() < deadline
+        time.sleep(0.1)
+    tr, info = read_bag(bag)
+    assert info.complete and tr.steps >= int(said[1])
+
+
+def test_the_same_out_twice_at_once_refuses_the_second_run(tmp_path):
+    """Two runs given the same --out at once: one records, the other is refused before it
+    starts anything and touches nothing."""
+    out = tmp_path / "same"
+    cmd = [*CLI, "run", "im_short", "--duration", "0.2", "--out", str(out)]
+    a = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)  # fmt: skip
+    b = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)  # fmt: skip
+    try:
+        results = {x.pid: (x.communicate(timeout=180), x.returncode) for x in (a, b)}
+    finally:
+        for x in (a, b):
+            signal_tree(x.pid, signal.SIGKILL)
+    codes = sorted(rc for _, rc in results.values())
+    assert codes == [0, 2], results
+    (winner,) = [pid for pid, (_, rc) in results.items() if rc == 0]
+    ((_, err), _) = next(v for v in results.values() if v[1] == 2)
+    assert f"another run (pid {winner}) is writing its bag there" in err
+    assert "ROS_DOMAIN_ID" not in err and "Traceback" not in err  # it started nothing
+    tr, info = read_bag(out)
+    assert info.complete and tr.steps == 4000
+    assert (out / "logs" / "metrics_logger.log").read_text().count("recording to") == 1
+    assert not (out / ".claim").exists()  # the claim ended with the run
+
+
+def _fastdds_files() -> set[str]:
+    return {p.name for p in Path("/dev/shm").iterdir() if "fastrtps" in p.name}
+
+
+def test_a_killed_node_leaves_no_shared_memory_behind(cli_run, tmp_path):
+    """Fast DDS cannot release the shared memory of a node killed outright; the launcher
+    removes what its children used and nobody uses any more (8-16 files were left per killed
+    node)."""
+    from predictive_drive.ros.processes import _shm_files
+
+    before = _fastdds_files()
+    p, nodes = started_recording(cli_run, tmp_path / "shm")
+    os.kill(nodes["plant"], signal.SIGKILL)
+    p.communicate(timeout=120)
+    assert p.returncode == 2
+    in_use = set().union(*(_shm_files(d.name) for d in Path("/proc").iterdir() if d.name.isdigit()))
+    left = _fastdds_files() - before - in_use
+    assert not left, sorted(left)
+
+
+def test_the_node_logs_stay_with_the_bag(tmp_path):
+    """The graph's logs, rcl's own log files and the parameter overrides go into <bag>/logs,
+    no temp folder elsewhere."""
+    import tempfile
+
+    before = set(Path(tempfile.gettempdir()).iterdir())
+    r = run("im_short", duration=0.01, engine="ros", out=tmp_path / "b")
+    logs = r.bag / "logs"
+    names = {p.name for p in logs.iterdir()}
+    assert names >= {"overrides.yaml", "plant.log", "metrics_logger.log"}
+    assert len([n for n in names if n.startswith("python_")]) == 4  # rcl's, one per node
+    made = set(Path(tempfile.gettempdir()).iterdir()) - before
+    assert not [p for p in made if p.name.startswith("tmp")]
+
+
+def test_a_user_without_a_writable_home_runs_the_graph(tmp_path):
+    """rcl writes its logs under ~/.ros/log by default; a HOME that cannot be made (here: under
+    /proc, which not even root can write) failed every node ("Failed to create log
+    directory"). The logs go with the run instead; the tools' own go to a temp folder."""
+    env = {k: v for k, v in os.environ.items() if k not in ("ROS_LOG_DIR", "ROS_HOME")}
+    env["HOME"] = "/proc/no-home"
+    r = subprocess.run([*CLI, "run", "im_short", "--duration", "0.01", "--out",
+                        str(tmp_path / "b"), "--json"], env=env, capture_output=True, text=True,
+                       timeout=180)  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["steps"] == 200
+    p = subprocess.run([*CLI, "param", "get", "plant", "u_dc"], env={**env, "ROS_DOMAIN_ID": "230"},
+                       capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert p.returncode == 2 and "offers no parameter services" in p.stderr, p.stderr

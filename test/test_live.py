@@ -78,7 +78,10 @@ def test_the_view_serves_decimated_topics_time_and_the_strategy():
             "Capability" not in str(got.server_info) and "time" in got.server_info["capabilities"]
         )
         client.subscribe(["/drive/state", "/clock"])
-        time.sleep(0.3)  # the subscription reaches the server
+        deadline = time.monotonic() + 10
+        while not all(view._channels[c].has_sinks() for c in ("state", "clock")):
+            assert time.monotonic() < deadline, "the subscription never reached the server"
+            time.sleep(0.01)
         fields = TOPICS["state"].fields
         for k in range(100):
             t = k * 50e-6
@@ -126,6 +129,19 @@ def test_a_port_in_use_is_refused_before_the_run(tmp_path):
     assert not (tmp_path / "b").exists()
 
 
+def close_and_stop(client: FoxgloveClient | None, p: subprocess.Popen[str]) -> str:
+    """The client gone, Ctrl-C to the run; its stderr (SIGKILL to all of it if it hangs)."""
+    if client is not None:
+        client.close()
+    os.kill(p.pid, signal.SIGINT)
+    try:
+        return p.communicate(timeout=60)[1]
+    except subprocess.TimeoutExpired:
+        signal_tree(p.pid, signal.SIGKILL)
+        p.communicate(timeout=10)
+        raise
+
+
 @pytest.mark.process
 def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
     """`run --live PORT` on the ROS graph: a client connects, receives the drive's topics and
@@ -133,6 +149,7 @@ def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
     the parameter event), then Ctrl-C ends the run with a readable bag."""
     port = free_port()
     bag = tmp_path / "live"
+    said: list[str] = []  # what the run said before the graph started
     p = subprocess.Popen(
         [*CLI, "run", "im_short", "--duration", "30", "--strategy", "mptc",
          "--live", str(port), "--out", str(bag)],
@@ -140,6 +157,10 @@ def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
     )  # fmt: skip
     client = None
     try:
+        while "ROS_DOMAIN_ID=" not in (line := p.stderr.readline()):
+            assert line, "the run ended before it started the graph"
+            said.append(line)
+        domain = re.search(r"ROS_DOMAIN_ID=(\d+)", line).group(1)
         client = FoxgloveClient(f"ws://127.0.0.1:{port}", timeout=60)
         got = client.pump(10, until=lambda g: len(g.channels) >= 8)
         client.subscribe(["/drive/state", "/drive/command", "/clock", "/diagnostics"])
@@ -162,6 +183,16 @@ def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
         updated = [{"name": STRATEGY, "value": "db_mptc"}]
         client.pump(20, until=lambda g: any(par["parameters"] == updated for par in g.parameters))
         assert any(par["parameters"] == updated for par in got.parameters)
+        # a switch from outside (another shell's `param set`) reaches the app too
+        outside = subprocess.run(
+            [*CLI, "param", "set", "torque_controller", "strategy", "mptc_db"],
+            env={**os.environ, "ROS_DOMAIN_ID": domain},
+            capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+        assert outside.returncode == 0, outside.stderr
+        updated = [{"name": STRATEGY, "value": "mptc_db"}]
+        client.pump(20, until=lambda g: any(par["parameters"] == updated for par in g.parameters))
+        assert any(par["parameters"] == updated for par in got.parameters)
         states = [CODECS["state"].decode(d) for _, d in got.messages["/drive/state"]]
         ks = np.array([s[0] for s in states])
         assert np.all(ks % 20 == 0) and np.all(np.diff(ks) > 0)
@@ -169,17 +200,43 @@ def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
         client.pump(20, until=lambda g: "/diagnostics" in g.messages)
         assert got.messages["/diagnostics"]
     finally:
-        if client is not None:
-            client.close()
-        os.kill(p.pid, signal.SIGINT)
-        try:
-            _, err = p.communicate(timeout=60)
-        except subprocess.TimeoutExpired:
-            signal_tree(p.pid, signal.SIGKILL)
-            p.communicate(timeout=10)
-            raise
+        err = close_and_stop(client, p)
     assert p.returncode == 130, err
-    assert re.search(rf"live view on ws://127.0.0.1:{port}", err)
+    assert re.search(rf"live view on ws://127.0.0.1:{port}", "".join(said) + err)
     tr, info = read_bag(bag)
     assert info.complete
-    assert [e.changed for _, e in info.events] == [(("strategy", "db_mptc"),)]
+    assert [e.changed for _, e in info.events] == [
+        (("strategy", "db_mptc"),),
+        (("strategy", "mptc_db"),),
+    ]
+
+
+@pytest.mark.process
+def test_in_process_the_strategy_is_shown_and_read_only(tmp_path):
+    """`run --engine inprocess --live PORT`: the app reads the strategy, and a set is refused
+    with the reason (the in-process loop has no parameter to take it); the run goes on."""
+    port = free_port()
+    bag = tmp_path / "inproc"
+    p = subprocess.Popen(
+        [*CLI, "run", "im_short", "--engine", "inprocess", "--duration", "30",
+         "--strategy", "mptc_db", "--live", str(port), "--out", str(bag)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    client = None
+    try:
+        client = FoxgloveClient(f"ws://127.0.0.1:{port}", timeout=60)
+        client.subscribe_parameters([STRATEGY])
+        client.get_parameters([STRATEGY], "g1")
+        got = client.pump(10, until=lambda g: g.parameters)
+        assert got.parameters[0]["parameters"] == [{"name": STRATEGY, "value": "mptc_db"}]
+        client.set_parameters({STRATEGY: "db_mptc"}, "s1")
+        client.pump(10, until=lambda g: g.statuses)
+        assert got.statuses[0]["message"] == f"{STRATEGY} is read-only in this engine"
+        assert got.parameters[-1]["parameters"] == [{"name": STRATEGY, "value": "mptc_db"}]
+        assert p.poll() is None
+    finally:
+        err = close_and_stop(client, p)
+    assert p.returncode == 130, err
+    tr, info = read_bag(bag)
+    assert not info.events and tr.steps > 0
+    assert set(tr.col("command", "strategy").astype(int)) == {1}  # mptc_db throughout

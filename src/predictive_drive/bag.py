@@ -11,12 +11,14 @@ chunk; :func:`read_records` falls back to a streaming read for such files.
 
 from __future__ import annotations
 
+import fcntl
 import heapq
 import json
 import os
 import shutil
 import time
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, cast
@@ -34,14 +36,18 @@ from .interface import BAG_TOPICS, TOPICS
 from .schemas import message_definition, type_hash
 
 __all__ = [
+    "CLAIM",
     "LOGS_DIR",
     "META_NAME",
     "BagWriter",
     "RecordedTopic",
     "RepairResult",
     "check_new_bag",
+    "first_log_time",
+    "claim_bag_dir",
     "iter_messages",
     "mcap_file",
+    "not_a_recording",
     "read_records",
     "recorded_topics",
     "repair_bag",
@@ -53,6 +59,9 @@ CHUNK_SIZE = 256 * 1024
 META_NAME = "predictive_drive"
 #: a bag directory may hold this folder besides the recording: the node logs of the run
 LOGS_DIR = "logs"
+#: the file by which a run claims its bag directory for as long as it runs (flock'ed: the kernel
+#: releases the claim of a run that was killed); removed when the run ends
+CLAIM = ".claim"
 
 
 class _FlushingFile:
@@ -79,15 +88,21 @@ class _FlushingFile:
         self._f.close()
 
 
-def check_new_bag(directory: str | Path) -> Path:
+def check_new_bag(directory: str | Path, *, claimed: bool = False) -> Path:
     """The directory a new bag goes to, checked before anything runs: it must not exist, or be an
-    empty folder (but for :data:`LOGS_DIR`), and its parent must be a writable folder. BagError
-    names the path and what is wrong."""
+    empty folder (but for :data:`LOGS_DIR`), no other run may have claimed it (see
+    :func:`claim_bag_dir`; ``claimed``: this run holds the claim), and its parent must be a
+    writable folder. BagError names the path and what is wrong."""
     d = Path(directory)
     if d.exists():
         if not d.is_dir():
             raise BagError(f"--out {d}: a file of that name exists; choose another --out")
-        others = sorted(p.name for p in d.iterdir() if p.name != LOGS_DIR)
+        if not claimed and (owner := _claimant(d)) is not None:
+            raise BagError(
+                f"--out {d}: another run (pid {owner}) is writing its bag there; choose another "
+                f"--out"
+            )
+        others = sorted(p.name for p in d.iterdir() if p.name not in (LOGS_DIR, CLAIM))
         if others:
             what = (
                 "a bag"
@@ -108,6 +123,59 @@ def check_new_bag(directory: str | Path) -> Path:
     return d
 
 
+def _claimant(d: Path) -> int | None:
+    """The PID of the run holding ``d``'s claim, or None when nobody holds it."""
+    try:
+        fd = os.open(d / CLAIM, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        # held: the holder writes its PID right after it takes the lock
+        for _ in range(100):
+            text = os.pread(fd, 32, 0).decode(errors="replace").strip()
+            if text.isdigit():
+                return int(text)
+            time.sleep(0.01)
+        return -1
+    finally:
+        os.close(fd)  # closing releases a shared lock taken just to look
+    return None
+
+
+@contextmanager
+def claim_bag_dir(directory: str | Path) -> Iterator[Path]:
+    """Claim ``directory`` for a new bag, atomically, for the whole run: checked as
+    :func:`check_new_bag` does, made, and locked (``<dir>/.claim``, with this process's PID). A
+    second run given the same directory is refused before it starts anything, and touches
+    nothing. The claim ends with the block (or with the process)."""
+    d = check_new_bag(directory)
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        fd = os.open(d / CLAIM, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        raise BagError(f"--out {d}: cannot create it: {e.strerror}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        owner = _claimant(d)
+        who = f"another run (pid {owner})" if owner and owner > 0 else "another run"
+        raise BagError(f"--out {d}: {who} is writing its bag there; choose another --out") from None
+    try:
+        check_new_bag(d, claimed=True)  # a run that ended meanwhile left its bag there
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield d
+    finally:
+        try:
+            (d / CLAIM).unlink()
+        except OSError:
+            pass
+        os.close(fd)
+
+
 def _qos_yaml(topic_key: str) -> str:
     return yaml.safe_dump([TOPICS[topic_key].qos.rosbag2()], sort_keys=False).strip()
 
@@ -116,10 +184,18 @@ class BagWriter:
     """Write one run. Use as a context manager: the bag is closed (index, footer, metadata.yaml)
     however the block ends, so Ctrl-C or an error leaves a complete, readable bag."""
 
-    def __init__(self, directory: str | Path, *, info: dict[str, Any], stamp: bool = True) -> None:
+    def __init__(
+        self,
+        directory: str | Path,
+        *,
+        info: dict[str, Any],
+        stamp: bool = True,
+        claimed: bool = False,
+    ) -> None:
         """``info``: the ``predictive_drive`` metadata record; ``stamp`` adds the package version
-        and the creation time (a repaired bag keeps the original's instead)."""
-        self.directory = check_new_bag(directory)
+        and the creation time (a repaired bag keeps the original's instead); ``claimed``: the
+        run this bag is written for holds the directory's claim (:func:`claim_bag_dir`)."""
+        self.directory = check_new_bag(directory, claimed=claimed)
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             self.path = self.directory / f"{self.directory.name}_0.mcap"
@@ -225,10 +301,27 @@ class BagWriter:
                 self._file.close()
             except OSError:
                 pass  # what could not be written stays unwritten
+            if self._failed:  # the first failure is the one to tell
+                raise BagError(
+                    f"writing the bag {self.directory} failed ({self._failed}) after "
+                    f"{self.message_count} messages; it has no index and holds what was written "
+                    f"up to its last complete chunk: `predictive-drive repair {self.directory}` "
+                    f"rebuilds one from that"
+                ) from None
             raise BagError(
                 f"closing the bag {self.directory} failed ({e.strerror or e}): it has no index; "
                 f"`predictive-drive repair {self.directory}` rebuilds one from what it holds"
             ) from None
+
+    @property
+    def failed(self) -> bool:
+        """A write failed (a full disk): nothing more can be written."""
+        return bool(self._failed)
+
+    @property
+    def failure(self) -> str:
+        """Why the write failed ('' if none did)."""
+        return self._failed
 
     def _finish(self) -> None:
         self._writer.add_metadata(
@@ -317,7 +410,38 @@ def mcap_file(bag: str | Path) -> Path:
         return files[0]
     if not p.is_file():
         raise BagError(f"{p}: no such bag directory or .mcap file")
+    _check_magic(p)
     return p
+
+
+#: the first bytes of every MCAP file
+MAGIC = b"\x89MCAP0\r\n"
+
+
+def _check_magic(path: Path) -> None:
+    """BagError unless ``path`` begins as an MCAP file does (an empty file is said to be)."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(len(MAGIC))
+    except OSError as e:
+        raise BagError(f"{path}: cannot read it: {e.strerror}") from None
+    if not head:
+        raise BagError(
+            f"{path}: the file is empty (0 bytes): its writer was killed before it wrote anything"
+        )
+    if head != MAGIC[: len(head)] or len(head) < len(MAGIC):
+        raise BagError(f"{path}: not an MCAP file (it does not begin with MCAP's magic bytes)")
+
+
+def not_a_recording(path: Path, meta: dict[str, dict[str, str]], messages: int) -> BagError:
+    """The error for an MCAP file without this package's metadata record: cut short before its
+    writer wrote any (no record past the header), or another program's recording."""
+    if not meta and messages == 0:
+        return BagError(
+            f"{path}: the recording was cut short before anything was recorded "
+            f"({path.stat().st_size} bytes: the file's header only)"
+        )
+    return BagError(f"{path}: not a predictive_drive recording (no '{META_NAME}' metadata)")
 
 
 def _check_metadata_yaml(path: Path) -> None:
@@ -384,7 +508,7 @@ def repair_bag(bag: str | Path) -> RepairResult:
     path = mcap_file(bag)
     msgs, meta, complete = read_records(path)
     if META_NAME not in meta:
-        raise BagError(f"{path}: not a predictive_drive recording (no '{META_NAME}' metadata)")
+        raise not_a_recording(path, meta, len(msgs))
     if complete:
         return RepairResult(path.parent, None, len(msgs))
     original = path.with_name(path.name + ".orig")
@@ -394,11 +518,21 @@ def repair_bag(bag: str | Path) -> RepairResult:
     order = sorted(range(len(msgs)), key=lambda i: msgs[i][1].log_time)  # stable: file order
     tmp = path.parent.parent / f".{path.parent.name}.repair-{os.getpid()}"
     try:
-        with BagWriter(tmp, info=meta[META_NAME], stamp=False) as w:
-            for i in order:
-                channel, message = msgs[i]
-                if channel.topic in keys:
-                    w.write(keys[channel.topic], message.log_time, message.data)
+        w: BagWriter | None = None
+        try:
+            with BagWriter(tmp, info=meta[META_NAME], stamp=False) as w:
+                for i in order:
+                    channel, message = msgs[i]
+                    if channel.topic in keys:
+                        w.write(keys[channel.topic], message.log_time, message.data)
+        except (BagError, OSError) as e:
+            failure = w.failure if w is not None else ""
+            why = failure or getattr(e, "strerror", None) or str(e)
+            raise BagError(
+                f"{path}: repairing it writes a second copy beside it (up to "
+                f"{path.stat().st_size} bytes), which failed ({why}); the original is intact: "
+                f"copy the bag to a disk with room and repair the copy"
+            ) from None
         os.replace(path, original)
         os.replace(w.path, path)
         os.replace(tmp / "metadata.yaml", path.parent / "metadata.yaml")
@@ -425,7 +559,11 @@ def _indexed_reader(bag: str | Path, f: Any) -> Any:
     reader = make_reader(f)
     try:
         reader.get_summary()
-    except (McapError, EOFError, ValueError, AssertionError) as e:
+    except (McapError, EOFError, ValueError, AssertionError, OSError) as e:
+        path = mcap_file(bag)
+        msgs, meta, _ = read_records(path)
+        if META_NAME not in meta:
+            raise not_a_recording(path, meta, len(msgs)) from None
         raise BagError(
             f"{bag}: the recording has no index (its writer was killed: {type(e).__name__}); "
             f"`predictive-drive repair {bag}` rebuilds it"
@@ -447,6 +585,17 @@ def recorded_topics(bag: str | Path) -> dict[str, RecordedTopic]:
             ch.topic, schema.name if schema else "", qos, counts.get(cid, 0)
         )
     return out
+
+
+def first_log_time(bag: str | Path) -> int | None:
+    """The log time of an indexed recording's first message (ns; None when it holds none),
+    from its summary: no chunk is read."""
+    path = mcap_file(bag)
+    with path.open("rb") as f:
+        stats = _indexed_reader(bag, f).get_summary().statistics
+    if stats is None or not stats.message_count:
+        return next((t for _, t, _ in iter_messages(bag)), None)  # a writer without statistics
+    return int(stats.message_start_time)
 
 
 def iter_messages(

@@ -174,5 +174,17 @@ class LiveView:
         # the value in force: it changes when the controller has taken the new one
         return [self._parameter()]
 
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        """A client subscribed: the server forwards the channel from now on (nothing to do)."""
+
+    def on_unsubscribe(self, client: Any, channel: Any) -> None:
+        """A client unsubscribed (nothing to do)."""
+
+    def on_parameters_subscribe(self, param_names: list[str]) -> None:
+        """The server sends parameter updates itself (nothing to do)."""
+
+    def on_parameters_unsubscribe(self, param_names: list[str]) -> None:
+        """Nothing to do."""
+
     def _status(self, message: str) -> None:
         self.server.publish_status(message, self._fg.StatusLevel.Error)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from .bag import META_NAME, mcap_file, read_records
+from .bag import META_NAME, mcap_file, not_a_recording, read_records
 from .codec import CODECS, ParameterEvent, decode_parameter_event
 from .core.signals import STATE_INDEX
 from .core.trace import RECORDS, Trace, TraceBuilder
@@ -71,7 +71,7 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     path = mcap_file(bag)
     msgs, meta, complete = read_records(path)
     if META_NAME not in meta:
-        raise BagError(f"{path}: not a predictive_drive recording (no '{META_NAME}' metadata)")
+        raise not_a_recording(path, meta, len(msgs))
     info = meta[META_NAME]
     by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
     rows: dict[str, dict[int, tuple[float, ...]]] = {rec: {} for rec in RECORDS}

@@ -300,7 +300,7 @@ class RunRecorder:
         """The last, partial diagnostics period, then the run's outcome: OK (or WARN, naming
         what was wrong) when every planned step is recorded, ERROR with ``error`` or the steps
         missing otherwise; the strategies in force go into the bag's metadata. Once."""
-        if self._finished:
+        if self._finished or self.writer.failed:  # a bag that failed takes nothing more
             return
         self._finished = True
         self._diagnose(self.live.flush())

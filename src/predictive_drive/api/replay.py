@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ConfigError, GraphError
+from ..errors import ConfigError
 
 if TYPE_CHECKING:  # the ros layer imports rclpy: only when a replay is asked for
     from ..ros.player_node import PlayResult
@@ -19,17 +19,15 @@ __all__ = ["replay", "replay_into"]
 
 def replay(bag: str | Path, **options: Any) -> PlayResult:
     """Play ``bag`` (options: :class:`~predictive_drive.ros.player_node.PlayOptions`) and say
-    what was published, the achieved rate (recorded s per wall s) and the final lag."""
+    what was published, the achieved rate (recorded s per wall s) and the final lag; Ctrl-C
+    ends it with what went out until then (``interrupted``)."""
     from ..ros.params import domain_id
     from ..ros.player_node import PlayOptions, play
     from ..ros.transport import ros_context
 
     opts = PlayOptions(**options)
-    try:
-        with ros_context(domain_id()) as ctx:
-            return play(bag, opts, context=ctx)
-    except KeyboardInterrupt:
-        raise GraphError("replay interrupted") from None
+    with ros_context(domain_id()) as ctx:
+        return play(bag, opts, context=ctx)
 
 
 def replay_into(
@@ -39,7 +37,7 @@ def replay_into(
     """Feed ``bag`` into a ``node`` process step by step (see
     :mod:`predictive_drive.ros.stepper`) and record the result; says how the new decisions agree
     with the recorded ones, the controller's compute time and the pace."""
-    from ..bag import check_new_bag
+    from ..bag import claim_bag_dir
     from ..ros.stepper import replay_into as step
 
     if node != "torque_controller":
@@ -51,8 +49,5 @@ def replay_into(
             source.resolve().parent
             / f"{source.resolve().name}_into_{strategy or 'recorded'}_{stamp}"
         )
-    target = check_new_bag(out)
-    try:
+    with claim_bag_dir(out) as target:
         return step(source, target, strategy=strategy)
-    except KeyboardInterrupt:
-        raise GraphError("replay into the torque controller interrupted") from None

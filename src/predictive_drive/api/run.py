@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..bag import BagWriter, check_new_bag
+from ..bag import BagWriter, check_new_bag, claim_bag_dir
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.metrics import Metrics
@@ -80,10 +80,12 @@ def run_inprocess_to_bag(
     switches: Sequence[tuple[int, str]] = (),
     progress: Callable[[int], None] | None = None,
     live_port: int = 0,
+    claimed: bool = False,
 ) -> int:
     """The in-process engine with recording; returns the number of steps recorded. ``switches``:
     (step, strategy) pairs, as :func:`switch_steps` makes them; ``live_port``: serve the live
-    view there too (the strategy read-only: this engine has no parameter service)."""
+    view there too (the strategy read-only: this engine has no parameter service); ``claimed``:
+    the caller holds ``out``'s claim (:func:`~predictive_drive.bag.claim_bag_dir`)."""
     names = strategy_names(sc.family)
     live = (
         LiveView(port=live_port, ts=sc.ts, strategy=sc.strategy, strategy_names=names)
@@ -91,7 +93,7 @@ def run_inprocess_to_bag(
         else None
     )
     try:
-        with BagWriter(out, info=bag_info(sc, "inprocess")) as writer:
+        with BagWriter(out, info=bag_info(sc, "inprocess"), claimed=claimed) as writer:
             rec = RunRecorder(
                 writer,
                 ts=sc.ts,
@@ -152,25 +154,28 @@ def run(
     if live:
         check_port(live)
     t0 = time.perf_counter()
-    try:
-        if engine == "inprocess":
-            run_inprocess_to_bag(sc, bag, at_steps, cb, live_port=live)
-        else:
-            from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
+    # claimed before anything starts: a second run given the same --out is refused
+    with claim_bag_dir(bag):
+        try:
+            if engine == "inprocess":
+                run_inprocess_to_bag(sc, bag, at_steps, cb, live_port=live, claimed=True)
+            else:
+                from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
 
-            run_graph(
-                sc,
-                bag,
-                composed=(engine == "composed"),
-                switches=switches,
-                progress=cb,
-                affinity=affinity,
-                sched=sched,
-                peer_timeout=peer_timeout,
-                live_port=live,
-            )
-    except KeyboardInterrupt:
-        raise Interrupted(f"interrupted: {bag_status(bag).describe()} (of {n} planned)") from None
+                run_graph(
+                    sc,
+                    bag,
+                    composed=(engine == "composed"),
+                    switches=switches,
+                    progress=cb,
+                    affinity=affinity,
+                    sched=sched,
+                    peer_timeout=peer_timeout,
+                    live_port=live,
+                )
+        except KeyboardInterrupt:
+            status = bag_status(bag).describe()
+            raise Interrupted(f"interrupted: {status} (of {n} planned)") from None
     wall = time.perf_counter() - t0
     ev = evaluate(bag)
     return RunResult(

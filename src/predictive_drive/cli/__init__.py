@@ -8,15 +8,21 @@ with its exit status, never a traceback.
 
 from __future__ import annotations
 
-import argparse
-import importlib
 import os
 import signal
-import sys
-from collections.abc import Sequence
-from types import ModuleType
 
-from ..errors import Interrupted, PredictiveDriveError
+# the first thing the command does: a Ctrl-C before main() has taken it over (while Python
+# imports the command line) ends the command with the interrupted status, without a traceback
+signal.signal(signal.SIGINT, lambda _s, _f: os._exit(130))
+
+import argparse  # noqa: E402
+import importlib  # noqa: E402
+import sys  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from types import ModuleType  # noqa: E402
+from typing import NoReturn  # noqa: E402
+
+from ..errors import Interrupted, PredictiveDriveError  # noqa: E402
 
 __all__ = ["DESCRIPTION", "VERBS", "build_parser", "main"]
 
@@ -44,17 +50,34 @@ def _verb(name: str) -> ModuleType:
     return importlib.import_module(f"{__name__}.{name}")
 
 
+class UsageError(PredictiveDriveError):
+    """The command line itself is wrong (an unknown option, a missing argument)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser; with ``--json`` a usage error is one JSON object too."""
+
+    json_errors = False
+
+    def error(self, message: str) -> NoReturn:
+        if _Parser.json_errors:
+            self.print_usage(sys.stderr)
+            _say_error(UsageError(f"{self.prog}: {message}"), True)
+            sys.exit(2)
+        super().error(message)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
 
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="predictive-drive",
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = p.add_subparsers(dest="verb", required=True, metavar="VERB")
-    json_option = argparse.ArgumentParser(add_help=False)
+    json_option = _Parser(add_help=False)
     json_option.add_argument(
         "--json", action="store_true", help="print one JSON object (an error too)"
     )
@@ -71,14 +94,30 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+#: signals that came while the verbs were being imported
+_pending: list[int] = []
+
+
+def _defer(signum: int, frame: object) -> None:
+    _pending.append(signum)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     # Ctrl-C and SIGTERM both end the command the same way: children stopped, bag closed. (A
     # shell's background job inherits SIGINT ignored; the graph's owner must still honour it.)
-    signal.signal(signal.SIGINT, _interrupt)
-    signal.signal(signal.SIGTERM, _interrupt)
-    as_json = "--json" in (sys.argv[1:] if argv is None else argv)
+    # While the verbs are imported, a signal waits for the imports to finish: a
+    # KeyboardInterrupt raised inside an extension module's initialisation can make Python
+    # end the process by SIGINT at exit whatever main() returned.
+    signal.signal(signal.SIGINT, _defer)
+    signal.signal(signal.SIGTERM, _defer)
+    as_json = _Parser.json_errors = "--json" in (sys.argv[1:] if argv is None else argv)
     try:
-        args = build_parser().parse_args(argv)
+        parser = build_parser()
+        signal.signal(signal.SIGINT, _interrupt)
+        signal.signal(signal.SIGTERM, _interrupt)
+        if _pending:
+            raise KeyboardInterrupt
+        args = parser.parse_args(argv)
         as_json = bool(getattr(args, "json", False))
         return int(args.main(args))
     except KeyboardInterrupt:

@@ -77,10 +77,12 @@ def main(a: argparse.Namespace) -> int:
     }
     d = replay(a.bag, **{k: v for k, v in options.items() if v is not None})
     if a.json:
-        return say_json(d)
+        say_json(d)
+        return 130 if d.interrupted else 0
     total = sum(d.published.values())
     print(
-        f"replayed {d.bag}: {total} messages in {d.wall_s:.2f} s "
+        ("interrupted: " if d.interrupted else "")
+        + f"replayed {d.bag}: {total} messages in {d.wall_s:.2f} s "
         f"({d.passes} pass{'es' if d.passes > 1 else ''}), achieved rate "
         f"{d.achieved_rate:.3g} (recorded s per wall s)"
     )
@@ -91,7 +93,7 @@ def main(a: argparse.Namespace) -> int:
             f"  fell behind the recording's pace by up to {d.max_lag_s:.2f} s (at the end "
             f"{d.lag_s:.2f} s): every message was published, in order, but late"
         )
-    return 0
+    return 130 if d.interrupted else 0
 
 
 def _into(a: argparse.Namespace) -> int:

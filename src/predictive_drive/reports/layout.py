@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..errors import ConfigError
 from ..interface import TOPICS
 
 __all__ = ["PLOTS", "foxglove_layout", "write_layout"]
@@ -107,8 +108,13 @@ def foxglove_layout() -> dict[str, Any]:
 
 
 def write_layout(path: str | Path) -> Path:
-    """Write the layout as JSON (the format Foxglove imports)."""
+    """Write the layout as JSON (the format Foxglove imports); ConfigError names the path and
+    why it cannot be written."""
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(foxglove_layout(), indent=2, ensure_ascii=False) + "\n")
+    text = json.dumps(foxglove_layout(), indent=2, ensure_ascii=False) + "\n"
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(text)
+    except OSError as e:
+        raise ConfigError(f"layout --out {p}: cannot write it: {e.strerror}") from None
     return p

@@ -8,6 +8,7 @@ then ends every child by PID: SIGINT (the logger closes its bag), then SIGTERM, 
 from __future__ import annotations
 
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -18,11 +19,20 @@ from typing import Any
 from ..bag import LOGS_DIR, check_new_bag
 from ..core.scenario import Scenario
 from ..core.timebase import step_index
-from ..errors import GraphError
+from ..errors import GraphError, Interrupted
 from ..interface import CLOCK_PERIOD, LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
 from ..readback import bag_status
 from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
-from .processes import isolated_domain, node_command, parameter_args, start_process, stop_processes
+from .processes import (
+    AGAIN,
+    SharedMemory,
+    is_stopped,
+    isolated_domain,
+    node_command,
+    parameter_args,
+    start_process,
+    stop_processes,
+)
 
 __all__ = ["START_ORDER", "run_graph"]
 
@@ -63,7 +73,7 @@ def run_graph(
     (:data:`SCHED_POLICIES`); the composed engine runs in one process and is left as it is."""
     if sched not in SCHED_POLICIES:
         raise GraphError(f"--sched: {sched!r} is not one of {', '.join(SCHED_POLICIES)}")
-    bag = check_new_bag(bag).resolve()
+    bag = check_new_bag(bag, claimed=True).resolve()  # the caller claimed it
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
     overrides: dict[str, dict[str, Any]] = {node_name(n): dict(shared) for n in NODES}
@@ -86,14 +96,15 @@ def run_graph(
     logs.mkdir(parents=True, exist_ok=True)
     args = parameter_args(source, overrides, logs)
     with isolated_domain() as domain:
-        env = ros_env(domain)
+        env = ros_env(domain, log_dir=logs)
         plan = {} if composed else cpu_plan(affinity)
         if not composed:
             env[SCHED_ENV] = sched
         procs: dict[str, subprocess.Popen[bytes]] = {}
         # the launcher's own node: the plant waits for its /clock subscription before step 0
-        watcher = _ClockWatcher(domain, sc, switches, progress) if watching else None
+        watcher = _ClockWatcher(domain, sc, switches, progress, logs) if watching else None
         modules = {"composed": "composed"} if composed else {n: f"{n}_node" for n in START_ORDER}
+        children = _Children(procs, logs)
         try:
             for name, module in modules.items():
                 procs[name] = start_process(
@@ -111,75 +122,205 @@ def run_graph(
                 file=sys.stderr,
                 flush=True,
             )
-            _watch(procs, logs, watcher, bag)
+            _watch(children, watcher, bag)
+        except KeyboardInterrupt:
+            try:
+                print(
+                    "predictive-drive: interrupted: the nodes finish what is in flight and the "
+                    "bag closes (Ctrl-C again to have them finish quickly)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                left = stop_processes(procs)  # further presses are counted there
+            except KeyboardInterrupt:  # again, in the instant before the stop began
+                print(AGAIN, file=sys.stderr, flush=True)
+                left = stop_processes(procs, urgent=True)
+            children.abandoned = bool(left)
+            raise Interrupted(_interrupted_report(children, bag, left, sc.run.steps)) from None
         finally:
-            stop_processes(procs)
+            if not children.abandoned:  # a repeated Ctrl-C leaves them to close on their own
+                stop_processes(procs)  # none left after a clean end or a failure
+            children.shm.clean()
             if watcher is not None:
                 watcher.close()
 
 
-def _watch(
-    procs: dict[str, subprocess.Popen[bytes]],
-    logs: Path,
-    watcher: _ClockWatcher | None,
-    bag: Path,
-) -> None:
+#: a node's log line saying a signal stopped it mid-run (node_base.STOPPED_LINE)
+_STOPPED_LINE = re.compile(r"^stopped by (SIG\w+) at step (-?\d+)$", re.MULTILINE)
+#: s a stop (SIGSTOP, a debugger) must last to be named as the reason a run failed, and how long
+#: after it ended it still counts
+STOP_BLAME = (1.0, 30.0)
+
+
+class _Children:
+    """The launcher's view of its node processes: how each ended, which were stopped by a signal
+    (SIGSTOP, a debugger) and when, and the shared memory they use (see :class:`SharedMemory`)."""
+
+    def __init__(self, procs: dict[str, subprocess.Popen[bytes]], logs: Path) -> None:
+        self.procs = procs
+        self.logs = logs
+        self.shm = SharedMemory()
+        self._stopped_since: dict[str, float] = {}
+        self.stops: dict[str, list[tuple[float, float]]] = {}  #: (from, to), time.monotonic()
+        self._sample_at = 0.0
+        self.abandoned = False  #: a repeated Ctrl-C left children to close on their own
+
+    def tick(self) -> None:
+        """Look at every child once (the watch loop's period)."""
+        now = time.monotonic()
+        for name, p in self.procs.items():
+            if p.poll() is None and is_stopped(p.pid):
+                self._stopped_since.setdefault(name, now)
+            elif name in self._stopped_since:
+                self.stops.setdefault(name, []).append((self._stopped_since.pop(name), now))
+        if now >= self._sample_at:  # the files a node uses are made at start-up, mostly
+            self.shm.sample([p.pid for p in self.procs.values() if p.poll() is None])
+            self._sample_at = now + 1.0
+
+    def stopped(self) -> dict[str, float]:
+        """Children stopped (by SIGSTOP, a debugger) long enough, recently enough, to have made
+        their peers time out: name → how long (s)."""
+        now = time.monotonic()
+        out: dict[str, float] = {}
+        for name in self.procs:
+            spans = list(self.stops.get(name, ()))
+            if name in self._stopped_since:
+                spans.append((self._stopped_since[name], now))
+            for start, end in spans:
+                if end - start >= STOP_BLAME[0] and now - end <= STOP_BLAME[1]:
+                    out[name] = max(out.get(name, 0.0), end - start)
+        return out
+
+    def log(self, name: str) -> Path:
+        return self.logs / f"{name}.log"
+
+    def stopped_by_signal(self, name: str) -> tuple[str, int] | None:
+        """(signal, step) when the node says a signal stopped it mid-run (it closed cleanly)."""
+        path = self.log(name)
+        found = _STOPPED_LINE.search(path.read_text(errors="replace")) if path.exists() else None
+        return (found.group(1), int(found.group(2))) if found else None
+
+    def ended_early(self) -> set[str]:
+        """Children that ended the run before it was done: failed, killed, or stopped by a
+        signal from outside (a child that finished the run exits 0 without a word)."""
+        return {
+            n
+            for n, p in self.procs.items()
+            if (c := p.poll()) is not None and (c != 0 or self.stopped_by_signal(n) is not None)
+        }
+
+
+def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path) -> None:
     """Wait for the children; follow /clock for progress and timed strategy switches. When one
-    fails, stop the others (they finish what is in flight and the logger closes the bag), then
-    report the node whose error came first in time, and the bag's state."""
+    ends the run early (it failed, was killed, or was stopped from outside), stop the others
+    (the logger takes what is in flight and closes the bag), then report why the run ended and
+    the bag's state."""
+    procs = children.procs
     while True:
         if watcher is not None:
             watcher.spin(0.05)
         else:
             time.sleep(0.05)
-        codes = {n: p.poll() for n, p in procs.items()}
-        failed = {n for n, c in codes.items() if c not in (None, 0)}
-        if failed:
+        children.tick()
+        early = children.ended_early()
+        if early:
             seen = time.time()
-            stop_processes(procs)
-            raise GraphError(_failure_report(procs, logs, bag, seen, failed))
-        if all(c == 0 for c in codes.values()):
+            # a child killed outright never acknowledges what its peers sent it: they are told
+            # to finish quickly (SIGTERM). One that exited (stopped, or failed) left the graph
+            # cleanly: they finish as usual, so a recorder that was only slow gets everything
+            killed = any(p.returncode is not None and p.returncode < 0 for p in procs.values())
+            stop_processes(procs, urgent=killed)
+            raise GraphError(_failure_report(children, bag, seen, early))
+        if all(p.poll() == 0 for p in procs.values()):
             if watcher is not None and (errors := watcher.final_errors()):
                 raise GraphError("; ".join(errors))
             return
 
 
-def _failure_report(
-    procs: dict[str, subprocess.Popen[bytes]],
-    logs: Path,
-    bag: Path,
-    seen: float,
-    failed: set[str],
-) -> str:
-    """Who failed first, how each ended, what it said, and the bag's state. A node failed when it
-    had ended (``failed``) or logged an error before the launcher saw the first end (``seen``,
-    wall time); the first is the one whose error came first, a node that ended without a word
-    counting as of ``seen``."""
-    ends = {}
+def _how(code: int | None) -> str:
+    if code is None:
+        return "is still running"
+    if code < 0:
+        return f"was killed by signal {-code} ({signal.Signals(-code).name})"
+    return f"exited with status {code}"
+
+
+def _failure_report(children: _Children, bag: Path, seen: float, early: set[str]) -> str:
+    """Why the run ended, what the node to blame said, and the bag's state.
+
+    The cause, in this order: a node stopped by SIGSTOP (or a debugger) long enough for its
+    peers to time out; a node stopped from outside by SIGINT / SIGTERM (it closed cleanly); a
+    node killed or failed. Among failed nodes the first is the one whose error came first (a node
+    that logged an error before the launcher saw the first end, ``seen`` in wall time, counts; a
+    node that ended without a word counts as of ``seen``)."""
+    procs = children.procs
+    stopped = children.stopped()
+    outside = {n: s for n in early if (s := children.stopped_by_signal(n)) is not None}
+    ends: dict[str, float] = {}
     for name, p in procs.items():
-        code = p.returncode
-        if code in (None, 0):
+        if p.returncode in (None, 0):
             continue
-        err = _first_error(logs / f"{name}.log")
+        err = _first_error(children.log(name))
         when = err[0] if err else seen
-        if name in failed or when < seen:
-            ends[name] = (when, code)
-    first = min(ends, key=lambda n: ends[n][0])
-    code = ends[first][1]
-    how = f"was killed by signal {-code}" if code < 0 else f"exited with status {code}"
+        if name in early or when < seen:
+            ends[name] = when
+    failed_first = min(ends, key=lambda n: ends[n]) if ends else None
+    if stopped:
+        name = max(stopped, key=lambda n: stopped[n])
+        cause = (
+            f"node {name} (pid {procs[name].pid}) was stopped by a signal (SIGSTOP, or a "
+            f"debugger) for {stopped[name]:.1f} s"
+            + (
+                f"; {failed_first} timed out waiting for it"
+                if failed_first not in (None, name)
+                else ""
+            )
+            + "; the run was stopped"
+        )
+        blame = failed_first or name
+    elif outside:
+        name = min(outside, key=lambda n: outside[n][1])
+        sig, step = outside[name]
+        cause = (
+            f"node {name} (pid {procs[name].pid}) was stopped from outside by {sig} at step "
+            f"{step} (it closed cleanly); the run was stopped"
+        )
+        blame = name
+    else:
+        assert failed_first is not None
+        name = blame = failed_first
+        cause = (
+            f"node {name} (pid {procs[name].pid}) failed first: it "
+            f"{_how(procs[name].returncode)}; the run was stopped"
+        )
     others = ", ".join(
-        f"{n} {'killed by signal ' + str(-c) if c < 0 else 'status ' + str(c)}"
+        f"{n} {_how(p.returncode)}"
         for n, p in procs.items()
-        if n != first and (c := p.returncode) not in (None, 0)
+        if n != name and p.returncode not in (None, 0)
     )
-    lines = [
-        f"node {first} (pid {procs[first].pid}) failed first: it {how}; the run was stopped"
-        + (f" (then: {others})" if others else ""),
-        bag_status(bag).describe() + f"; node logs in {logs}",
-        f"  {first} said:",
-        _tail(logs / f"{first}.log"),
-    ]
-    return "\n".join(lines)
+    return "\n".join(
+        [
+            cause + (f" (then: {others})" if others else ""),
+            bag_status(bag).describe() + f"; node logs in {children.logs}",
+            f"  {blame} said:",
+            _tail(children.log(blame)),
+        ]
+    )
+
+
+def _interrupted_report(children: _Children, bag: Path, left: list[str], planned: int) -> str:
+    """What is true when an interrupted run's command exits: the bag's state, or — when a
+    repeated Ctrl-C left the nodes to finish on their own — who is still closing it."""
+    if "metrics_logger" in left or "composed" in left:
+        name = "metrics_logger" if "metrics_logger" in left else "composed"
+        status = bag_status(bag)
+        so_far = f"{status.steps} steps so far" if status.readable else "no whole step yet"
+        return (
+            f"interrupted: {name} (pid {children.procs[name].pid}) is still closing the bag "
+            f"{bag} ({so_far}, of {planned} planned); it is complete when that process ends "
+            f"(on its own, within a minute); node logs in {children.logs}"
+        )
+    return f"interrupted: {bag_status(bag).describe()} (of {planned} planned)"
 
 
 class _ClockWatcher:
@@ -197,12 +338,13 @@ class _ClockWatcher:
         sc: Scenario,
         switches: Sequence[tuple[float, str]],
         progress: Callable[[int], None] | None,
+        logs: Path,
     ) -> None:
         from rclpy.parameter_client import AsyncParameterClient
 
         from .transport import ros_session
 
-        self._session = ros_session(LAUNCHER_NODE, domain=domain, namespace=NAMESPACE)
+        self._session = ros_session(LAUNCHER_NODE, domain=domain, namespace=NAMESPACE, log_dir=logs)
         self.node, self.ex = self._session.__enter__()
         self.ts = sc.ts
         self.progress = progress

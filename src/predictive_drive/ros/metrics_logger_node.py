@@ -21,7 +21,8 @@ from ..errors import BagError
 from ..interface import NODES, RECORDED_EVERY, TOPICS, node_name
 from ..live import LiveView
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
-from .node_base import WatchedNode, run_main
+from .node_base import FINISH_TIMEOUT, WatchedNode, run_main
+from .placement import launcher_pid
 
 __all__ = ["MetricsLoggerNode", "main"]
 
@@ -70,7 +71,9 @@ class MetricsLoggerNode(WatchedNode):
         out = Path(extra.bag) if extra.bag else default_bag_dir(sc)
         self.live = self._live_view(extra.live_port, run.ts, sc) if extra.live_port else None
         try:
-            self.writer = BagWriter(out, info=bag_info(sc, extra.engine))
+            # run by the project's launcher, which holds the directory's claim for the run
+            claimed = launcher_pid() != 0
+            self.writer = BagWriter(out, info=bag_info(sc, extra.engine), claimed=claimed)
         except BaseException:
             if self.live is not None:
                 self.live.close()
@@ -79,6 +82,9 @@ class MetricsLoggerNode(WatchedNode):
         self.pub_recorded = self.publisher("recorded")
         self._last = {"state": -1, "reference": -1, "command": -1}  #: last k written, by record
         self._said = -1  #: the last step /drive/recorded announced
+        #: stopping: /drive/recorded is no longer announced, so the plant holds within
+        #: RECORDING_WINDOW steps and everything it published reaches this node (back-pressure)
+        self._draining = False
         self._ts = run.ts
         self._last_message = time.monotonic()
         self.rec = RunRecorder(
@@ -166,7 +172,7 @@ class MetricsLoggerNode(WatchedNode):
         self._counts[rec] += 1
         self._last[rec] = int(row[0])
         through = min(self._last.values())
-        if through >= self._said + RECORDED_EVERY or through >= self.n - 1:
+        if not self._draining and (through >= self._said + RECORDED_EVERY or through >= self.n - 1):
             self._said = through
             # the plant runs ahead of this by at most RECORDING_WINDOW steps (back-pressure)
             progress = (float(through), through * self._ts, float(self.writer.message_count))
@@ -175,14 +181,23 @@ class MetricsLoggerNode(WatchedNode):
 
     def finish(self, spin: Callable[[float], None], deadline: float) -> None:
         """Take what is still in flight before the bag closes: until every step has come, or
-        nothing has for a second (the peers keep their publishers until it is acknowledged)."""
+        nothing has for a second. /drive/recorded is not announced any more, so the plant stops
+        within RECORDING_WINDOW steps of the last announcement: every state it published comes
+        (the peers keep their publishers until it is acknowledged). Bounded by FINISH_TIMEOUT
+        whatever stopped the run: the recording is what a stop must not cut short."""
+        self._draining = True
         start = time.monotonic()
+        until = max(deadline, start + FINISH_TIMEOUT)
         while (
             self._counts != self._need
-            and time.monotonic() < deadline
+            and time.monotonic() < until
             and time.monotonic() - max(start, self._last_message) < 1.0
         ):
             spin(0.05)
+
+    @property
+    def last_step(self) -> int:
+        return min(self._last.values())
 
     def _maybe_done(self) -> None:
         if self._counts == self._need:

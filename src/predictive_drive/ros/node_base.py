@@ -54,6 +54,15 @@ FINISH_TIMEOUT = 20.0
 #: set by SIGINT / SIGTERM: the node ends its run and closes (rclpy's own handlers are not
 #: installed: they would shut the context down before the logger has taken what is in flight)
 STOP = threading.Event()
+#: the signal that set :data:`STOP` (0: none). SIGINT asks a node to finish what is in flight
+#: (its publishers wait for every acknowledgement); SIGTERM asks it to finish quickly: a peer is
+#: gone, so acknowledgements it owes will never come (the logger still takes what is in flight)
+STOPPED_BY = [0]
+#: s a node stopped by SIGTERM waits for acknowledgements before it goes
+QUICK_FINISH = 1.0
+#: the line a node run by the project's launcher writes to its log when a signal stopped it
+#: mid-run (the launcher reads it to say who stopped the run and at which step)
+STOPPED_LINE = "stopped by {signal} at step {step}"
 
 _INT64 = (-(2**63), 2**63 - 1)
 
@@ -157,6 +166,11 @@ class DriveNode(Node):
     def finish(self, spin: Callable[[float], None], deadline: float) -> None:
         """The run is over (done, failed or stopped): see the messages still in flight through,
         until ``deadline`` (time.monotonic()). ``spin(t)`` runs the executor for up to t s."""
+
+    @property
+    def last_step(self) -> int:
+        """The last step this node has handled (-1 before the first)."""
+        return -1
 
     def resumed(self) -> None:
         """This process did not run for a while (stopped by a signal, starved): the time its
@@ -307,8 +321,13 @@ def spin_main(
     SIGINT and SIGTERM set :data:`STOP` (rclpy's handlers are not installed): the loop ends, the
     nodes finish what is in flight (:meth:`DriveNode.finish`), close and go."""
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+
+    def stop(signum: int, _frame: object) -> None:
+        STOPPED_BY[0] = STOPPED_BY[0] or signum
+        STOP.set()
+
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda _s, _f: STOP.set())
+        signal.signal(sig, stop)
     nodes: list[DriveNode] = []
     code = 0
     ex = executor()
@@ -322,9 +341,15 @@ def spin_main(
         code = 2
     finally:
         with closing():
-            deadline = time.monotonic() + FINISH_TIMEOUT
+            urgent = STOPPED_BY[0] == signal.SIGTERM
+            deadline = time.monotonic() + (QUICK_FINISH if urgent else FINISH_TIMEOUT)
             for n in sorted(nodes, key=lambda n: not isinstance(n, WatchedNode)):
                 n.finish(lambda t: _spin(ex, bus, t), deadline)
+            stopped_mid_run = STOPPED_BY[0] and not all(n.finished for n in nodes)
+            if stopped_mid_run and launcher_pid():
+                name = signal.Signals(STOPPED_BY[0]).name
+                step = max((n.last_step for n in nodes), default=-1)
+                print(STOPPED_LINE.format(signal=name, step=step), file=sys.stderr, flush=True)
             for n in nodes:
                 if n.failure:
                     print(n.failure, file=sys.stderr)

@@ -72,13 +72,25 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
             return Parameter.from_parameter_msg(type("P", (), {"name": name, "value": v})()).value
         r = res.results[0]
         if not r.successful:
+            listing = _names(client, ex)
+            if listing is not None and name not in listing:  # rclpy's reason names nothing
+                raise GraphError(
+                    f"node {node} has no parameter {name!r}; its parameters: "
+                    f"{', '.join(sorted(listing))}"
+                )
             raise GraphError(f"{node}: setting {name} to {value!r} was rejected: {r.reason}")
         return _value(value)
 
 
-def _listing(client: AsyncParameterClient, ex: Any) -> str:
+def _names(client: AsyncParameterClient, ex: Any) -> list[str] | None:
+    """The node's parameter names (None when the list does not come)."""
     fut = client.list_parameters()
     ex.spin_until_future_complete(fut, timeout_sec=RESEND_AFTER)
-    if not fut.done():
+    return list(fut.result().result.names) if fut.done() else None
+
+
+def _listing(client: AsyncParameterClient, ex: Any) -> str:
+    names = _names(client, ex)
+    if names is None:
         return "its parameter list did not come"
-    return "its parameters: " + ", ".join(sorted(fut.result().result.names))
+    return "its parameters: " + ", ".join(sorted(names))

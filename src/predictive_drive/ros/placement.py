@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable, Sequence
+import tempfile
+from collections.abc import Callable, MutableMapping, Sequence
 from pathlib import Path
 
 from ..errors import GraphError
@@ -23,6 +24,7 @@ __all__ = [
     "cpu_plan",
     "launcher_pid",
     "ros_env",
+    "ros_log_dir",
 ]
 
 #: set by the launcher to its PID for its children: a node whose parent is no longer that process
@@ -45,10 +47,23 @@ FASTDDS_PROFILES = Path(__file__).with_name("fastdds_profiles.xml")
 FASTDDS_PROFILES_ENV = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
 
-def ros_env(domain: int) -> dict[str, str]:
+def ros_log_dir(env: MutableMapping[str, str], log_dir: Path | None = None) -> None:
+    """Where rcl writes its log files: ``log_dir`` (a run's ``logs/``), or a folder of this
+    user's under the temp folder — not ``~/.ros/log``, which a user without a writable HOME does
+    not have (rclpy then fails to start) — unless the user chose with ROS_LOG_DIR or ROS_HOME."""
+    if env.get("ROS_LOG_DIR") or env.get("ROS_HOME"):
+        return
+    if log_dir is None:
+        log_dir = Path(tempfile.gettempdir()) / f"predictive_drive_ros_log_{os.getuid()}"
+    env["ROS_LOG_DIR"] = str(log_dir)
+
+
+def ros_env(domain: int, *, log_dir: Path | None = None) -> dict[str, str]:
     """The environment of the launcher's children: its ROS domain, discovery on localhost, its
-    PID, the project's Fast DDS profile (unless the user has one) and the ament prefix."""
+    PID, the project's Fast DDS profile (unless the user has one), the ament prefix, and rcl's
+    log folder (:func:`ros_log_dir`: ``log_dir``, the run's ``logs/``)."""
     env = dict(os.environ)
+    ros_log_dir(env, log_dir)
     env["ROS_DOMAIN_ID"] = str(domain)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONUNBUFFERED"] = "1"

@@ -78,6 +78,7 @@ class PlantNode(WatchedNode):
                 ParameterEvent, events.name, self.on_parameter_event, qos(events.qos)
             )
         self.k_started = False
+        self.published = -1  #: the last state published
 
     def _not_listening(self) -> list[str]:
         """Who step 0 still waits for: speed_pi, torque_controller, metrics_logger (and the
@@ -146,6 +147,11 @@ class PlantNode(WatchedNode):
         if self._recording_allows(k) and self._switched(k):
             self.publish_state(state)
         else:
+            if not self._switched(k):
+                self.get_logger().info(
+                    f"state {k} waits for the strategy switch scheduled at step "
+                    f"{self.switch_steps[self.switches_taken]}"
+                )
             self.held = state
             self._held_since = time.monotonic()
 
@@ -173,12 +179,18 @@ class PlantNode(WatchedNode):
 
     def publish_state(self, state: State) -> None:
         self.pub_state.publish(_STATE.encode(state))
+        self.published = int(state.k)
         for key, _ns, data in tool_messages(state, self._every):
             (self.pub_clock if key == "clock" else self.pub_joint).publish(data)
         if int(state.k) >= self.n:
             for p in (self.pub_state, self.pub_clock, self.pub_joint):
                 p.wait_for_all_acked(Duration(seconds=self.peer_timeout))
             self.finished = True
+
+    @property
+    def last_step(self) -> int:
+        """The last state published (a state held for the recorder or a switch is not)."""
+        return self.published
 
     def stalled_message(self) -> str:
         if not self.k_started:

@@ -20,11 +20,12 @@ from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 
-from ..bag import RecordedTopic, iter_messages, recorded_topics
+from ..bag import RecordedTopic, first_log_time, iter_messages, recorded_topics
 from ..codec import encode_clock
 from ..errors import ConfigError
 from ..interface import NAMESPACE, PLAYER_NODE, TOPICS, Qos
@@ -74,7 +75,7 @@ class PlayResult:
     """``replay``: what was published of ``bag`` (per topic as it went out, remaps applied), the
     achieved rate (recorded s per wall s), how far behind the recording's pace the last message
     and the latest one went (s of recorded time; 0 when on time), the wall time and the passes
-    (``--loop``)."""
+    (``--loop``); ``interrupted``: Ctrl-C ended it (what went out until then)."""
 
     bag: Path
     published: dict[str, int]
@@ -83,6 +84,7 @@ class PlayResult:
     max_lag_s: float
     wall_s: float
     passes: int
+    interrupted: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         return {**dataclasses.asdict(self), "bag": str(self.bag)}
@@ -111,12 +113,16 @@ class PlayerNode(Node):
                 ParameterDescriptor(description="playback paused (true) or running"),
             ).value
         )
-        self.pubs = {
-            name: self.create_publisher(
-                msg_class(t.type), options.remap.get(name, name), qos_of(t.qos)
-            )
-            for name, t in topics.items()
-        }
+        self.pubs = {}
+        for name, t in topics.items():
+            target = options.remap.get(name, name)
+            try:
+                self.pubs[name] = self.create_publisher(msg_class(t.type), target, qos_of(t.qos))
+            except InvalidTopicNameException as e:
+                raise ConfigError(
+                    f"--remap {name}:={target}: {target!r} is not a valid ROS topic name "
+                    f"({str(e).splitlines()[0]})"
+                ) from None
         self.clock_pub = None
         if options.clock_hz is not None:
             clock = TOPICS["clock"]
@@ -192,21 +198,22 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
     published = {node.pubs[t].topic_name: 0 for t in play_topics}
     lag = max_lag = 0.0
     passes = 0
-    first_ns = last_ns = None
     clock = _PlayClock(node.rate, node.paused)
     next_service = next_clock = time.perf_counter()
     clock_period = 1.0 / options.clock_hz if options.clock_hz is not None else 0.0
     said_behind = 0.0
+    first = first_log_time(bag)
+    interrupted = False
+    done_ns = span_ns = 0  #: recorded time played: the passes before this one, and all of it
     try:
         while True:
             passes += 1
-            msgs = _window(bag, play_topics, options)
+            msgs = _window(bag, play_topics, options, first)
             start_ns: int | None = None
             for topic, t_ns, data in msgs:
                 if start_ns is None:
                     start_ns = t_ns
-                    first_ns = t_ns if first_ns is None else first_ns
-                due = (t_ns - start_ns) / NS
+                due = (done_ns + t_ns - start_ns) / NS  # recorded time played, over the passes
                 while True:  # wait for the message's time (serving parameters, /clock)
                     wall = time.perf_counter()
                     if node.changed:
@@ -217,13 +224,16 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
                         ex.spin_once(timeout_sec=min(max(wait, 0.0), SERVICE_PERIOD))
                         next_service = time.perf_counter() + SERVICE_PERIOD
                     if node.clock_pub is not None and wall >= next_clock and not clock.paused:
-                        node.clock_pub.publish(encode_clock(start_ns / NS + clock.now()))
+                        # the replayed time within this pass: the pace's while on time, the
+                        # next message's when behind (never ahead of what has gone out)
+                        now = start_ns / NS + min(clock.now(), due) - done_ns / NS
+                        node.clock_pub.publish(encode_clock(now))
                         next_clock = wall + clock_period
                     if not clock.paused and clock.now() >= due:
                         break
                 node.pubs[topic].publish(data)
                 published[node.pubs[topic].topic_name] += 1
-                last_ns = t_ns
+                span_ns = done_ns + t_ns - start_ns
                 lag = max(0.0, clock.now() - due)
                 max_lag = max(max_lag, lag)
                 if lag > BEHIND and time.perf_counter() - said_behind > 2.0:
@@ -235,31 +245,37 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
                         file=sys.stderr,
                         flush=True,
                     )
+            done_ns = span_ns
             if not options.loop or start_ns is None:
                 break
+        running = clock.running()  # publishing ends here (not the wait for acknowledgements)
+    except KeyboardInterrupt:
+        interrupted = True
         running = clock.running()
-        span = ((last_ns or 0) - (first_ns or 0)) / NS * passes
-        return PlayResult(
-            bag=Path(bag),
-            published=published,
-            achieved_rate=span / running if running > 0 else float("nan"),
-            lag_s=lag,
-            max_lag_s=max_lag,
-            wall_s=running,
-            passes=passes,
-        )
     finally:
-        for pub in node.pubs.values():  # let reliable readers have everything before we go
-            pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+        # let reliable readers have everything before we go (briefly, when told to stop)
+        ack_wait = Duration(seconds=1.0 if interrupted else ACK_TIMEOUT)
+        for pub in node.pubs.values():
+            pub.wait_for_all_acked(ack_wait)
         ex.shutdown(timeout_sec=1.0)
         node.destroy_node()
+    return PlayResult(
+        bag=Path(bag),
+        published=published,
+        achieved_rate=span_ns / NS / running if running > 0 else float("nan"),
+        lag_s=lag,
+        max_lag_s=max_lag,
+        wall_s=running,
+        passes=passes,
+        interrupted=interrupted,
+    )
 
 
 def _window(
-    bag: str | Path, topics: list[str], options: PlayOptions
+    bag: str | Path, topics: list[str], options: PlayOptions, first: int | None
 ) -> Iterator[tuple[str, int, bytes]]:
-    """The recording's messages of ``topics`` within the start offset and playback duration."""
-    first = next((t_ns for _, t_ns, _ in iter_messages(bag)), None)
+    """The recording's messages of ``topics`` within the start offset and playback duration
+    (``first``: the recording's first log time, ns)."""
     if first is None:
         return
     start = first + round(options.start_offset * NS)

@@ -15,7 +15,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -25,7 +25,11 @@ import yaml
 from ..errors import GraphError
 
 __all__ = [
+    "AGAIN",
     "STOP_GRACE",
+    "TERM_GRACE",
+    "SharedMemory",
+    "is_stopped",
     "isolated_domain",
     "node_command",
     "parameter_args",
@@ -75,9 +79,20 @@ def isolated_domain() -> Iterator[int]:
 
 #: s a child may take to close once asked (messages in flight, the bag), before SIGTERM
 STOP_GRACE = 45.0
+#: s a child may take to close once told to finish quickly (SIGTERM), before SIGKILL: its
+#: publishers wait at most 1 s for acknowledgements, the logger takes what is in flight (until a
+#: second passes without a message) and closes the bag
+TERM_GRACE = 15.0
 
 
-def _stopped(pid: int) -> bool:
+#: what a second Ctrl-C while children close does
+AGAIN = (
+    "predictive-drive: interrupted again: asking the nodes to finish quickly (Ctrl-C once more "
+    "leaves them to close on their own)"
+)
+
+
+def is_stopped(pid: int) -> bool:
     """The process is stopped by a signal (SIGSTOP, a debugger): it cannot close until resumed."""
     try:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in ("T", "t")
@@ -85,31 +100,145 @@ def _stopped(pid: int) -> bool:
         return False
 
 
-def stop_processes(procs: dict[str, subprocess.Popen[bytes]], *, grace: float = STOP_GRACE) -> None:
+def stop_processes(
+    procs: dict[str, subprocess.Popen[bytes]], *, grace: float = STOP_GRACE, urgent: bool = False
+) -> list[str]:
     """End every still-running child by PID: SIGINT (it finishes what is in flight and closes),
-    then SIGTERM, then SIGKILL, each with a timeout; says so when it waits for a stopped one."""
-    for sig, wait in ((signal.SIGINT, grace), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
-        alive = {n: p for n, p in procs.items() if p.poll() is None}
-        if not alive:
-            return
-        for p in alive.values():
+    then SIGTERM (it finishes quickly: use it at once, ``urgent``, when a peer is gone and the
+    acknowledgements it owes will never come), then SIGKILL, each with a timeout; says so when
+    it waits for a stopped one. A Ctrl-C (or SIGTERM) while it waits moves on to SIGTERM; one
+    more leaves the children to finish on their own. Returns the children still running then
+    (none when it saw them all end)."""
+    phases = [(signal.SIGINT, grace), (signal.SIGTERM, TERM_GRACE), (signal.SIGKILL, 5.0)]
+    with _counting_presses() as presses:
+        acted = 0  # presses acted on: each moves the stop on by one step
+        for sig, wait in phases[1:] if urgent else phases:
+            alive = {n: p for n, p in procs.items() if p.poll() is None}
+            if not alive:
+                return []
+            for p in alive.values():
+                try:
+                    os.kill(p.pid, sig)
+                except ProcessLookupError:
+                    pass
+            if _wait_for(alive, wait, _pressed_since(presses, acted)) and sig != signal.SIGKILL:
+                acted += 1
+                if sig != signal.SIGINT:
+                    break  # pressed again while they finish quickly: leave them to it
+                print(AGAIN, file=sys.stderr, flush=True)
+    return [n for n, p in procs.items() if p.poll() is None]
+
+
+def _pressed_since(presses: list[int], before: int) -> Callable[[], bool]:
+    return lambda: presses[0] > before
+
+
+@contextmanager
+def _counting_presses() -> Iterator[list[int]]:
+    """While children stop, a Ctrl-C or SIGTERM is counted (``[n]``), not raised: an interrupt
+    at any moment of the stop is a press to act on, never an escape from it. Only where signal
+    handlers can be set (the main thread); elsewhere nothing is counted."""
+    presses = [0]
+
+    def press(_signum: int, _frame: object) -> None:
+        presses[0] += 1
+
+    try:
+        previous = {sig: signal.signal(sig, press) for sig in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        yield presses
+        return
+    try:
+        yield presses
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _wait_for(
+    alive: dict[str, subprocess.Popen[bytes]], wait: float, pressed: Callable[[], bool]
+) -> bool:
+    """Wait up to ``wait`` s for ``alive`` to end; True when ``pressed()`` cut it short."""
+    deadline = time.monotonic() + wait
+    said = set()
+    while time.monotonic() < deadline and any(p.poll() is None for p in alive.values()):
+        if pressed():
+            return True
+        for n, p in alive.items():
+            if n not in said and p.poll() is None and is_stopped(p.pid):
+                said.add(n)
+                print(
+                    f"predictive-drive: {n} (pid {p.pid}) is stopped by a signal; waiting up "
+                    f"to {wait:.0f} s for it to go on and close",
+                    file=sys.stderr,
+                    flush=True,
+                )
+        time.sleep(0.05)
+    return False
+
+
+#: where Fast DDS keeps its shared-memory segments, ports and their locks and semaphores
+SHM_DIR = Path("/dev/shm")
+_FASTDDS_SHM = ("fastrtps_", "sem.fastrtps_")
+
+
+def _shm_files(pid: int | str) -> set[str]:
+    """Fast DDS's files in /dev/shm that process ``pid`` maps or holds open (empty when it is
+    gone or not ours to read)."""
+    names: set[str] = set()
+    proc = Path(f"/proc/{pid}")
+    try:
+        for line in (proc / "maps").read_text().splitlines():
+            path = line.rpartition(" ")[2]
+            if path.startswith("/dev/shm/"):
+                names.add(path[9:])
+        for fd in (proc / "fd").iterdir():
+            target = os.readlink(fd)
+            if target.startswith("/dev/shm/"):
+                names.add(target[9:])
+    except OSError:
+        pass
+    return {n for n in names if n.startswith(_FASTDDS_SHM)}
+
+
+class SharedMemory:
+    """The Fast DDS shared-memory files of the node processes a tool started.
+
+    A node killed outright (SIGKILL, a crash) cannot release them: its own segment and port
+    stay, and the shared ports it had opened keep its reference and outlive every survivor (8-16
+    files per killed node, measured). :meth:`sample` records, while the children run, what each
+    maps or holds open; :meth:`clean`, once they have ended, removes those of them no process on
+    the machine uses any more — only files these children used, never another's."""
+
+    def __init__(self) -> None:
+        self.seen: set[str] = set()
+
+    def sample(self, pids: list[int]) -> None:
+        for pid in pids:
+            self.seen |= _shm_files(pid)
+
+    def clean(self) -> list[str]:
+        """Remove what the children left that nothing uses; returns the names removed."""
+        if not self.seen:
+            return []
+        # a port's named mutex is opened only while the port is (un)registered, so no sample
+        # sees it mapped: it goes with its port
+        ports = (n for n in self.seen if n.startswith("fastrtps_port") and not n.endswith("_el"))
+        candidates = self.seen | {f"sem.{n}_mutex" for n in ports}
+        in_use: set[str] = set()
+        for proc in Path("/proc").iterdir():
+            if proc.name.isdigit():
+                in_use |= _shm_files(proc.name) & candidates
+        removed = []
+        for name in sorted(candidates - in_use):
             try:
-                os.kill(p.pid, sig)
-            except ProcessLookupError:
-                pass
-        deadline = time.monotonic() + wait
-        said = set()
-        while time.monotonic() < deadline and any(p.poll() is None for p in alive.values()):
-            for n, p in alive.items():
-                if n not in said and p.poll() is None and _stopped(p.pid):
-                    said.add(n)
-                    print(
-                        f"predictive-drive: {n} (pid {p.pid}) is stopped by a signal; waiting up "
-                        f"to {wait:.0f} s for it to go on and close",
-                        file=sys.stderr,
-                        flush=True,
-                    )
-            time.sleep(0.05)
+                (SHM_DIR / name).unlink()
+                removed.append(name)
+            except FileNotFoundError:
+                pass  # its owner removed it on the way out
+            except OSError:
+                pass  # not ours to remove: left as it is
+        return removed
 
 
 def node_command(module: str) -> list[str]:

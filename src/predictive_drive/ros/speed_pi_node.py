@@ -36,6 +36,10 @@ class SpeedPINode(WatchedNode):
         self.sub_state = self.subscription("state", self.on_state)
         self._next = 0
 
+    @property
+    def last_step(self) -> int:
+        return self._next - 1
+
     def stalled_message(self) -> str:
         return f"no {TOPICS['state'].name} for step {self._next} from {node_name('plant')}"
 

@@ -24,13 +24,19 @@ from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, stamp_ns
 from ..core.control import strategy_names
 from ..core.signals import COMMAND_INDEX, PULSES
-from ..core.trace import Trace
-from ..errors import GraphError
+from ..errors import GraphError, Interrupted
 from ..interface import NAMESPACE, STEPPER_NODE, node_name
 from ..readback import read_bag
 from ..recording import bag_info, scenario_of, tool_every, tool_messages
 from .placement import ros_env
-from .processes import isolated_domain, node_command, parameter_args, start_process, stop_processes
+from .processes import (
+    SharedMemory,
+    isolated_domain,
+    node_command,
+    parameter_args,
+    start_process,
+    stop_processes,
+)
 from .transport import raw_publisher, raw_subscription, ros_session
 
 __all__ = ["StepResult", "replay_into"]
@@ -66,8 +72,10 @@ class StepResult:
 
 def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -> StepResult:
     """Feed the recording ``source`` into a torque controller node step by step and record the
-    result to ``out``. ``strategy``: the one strategy to replay into (default: the recording's
-    own, switched at the recorded steps)."""
+    result to ``out`` as it goes (the caller holds ``out``'s claim). ``strategy``: the one
+    strategy to replay into (default: the recording's own, switched at the recorded steps).
+    Interrupted (KeyboardInterrupt), the new bag is closed with every step replayed so far and
+    :class:`~predictive_drive.errors.Interrupted` says what it holds."""
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
 
@@ -81,7 +89,7 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
     plan = [strategy] * n if strategy is not None else recorded
     out = out.resolve()
     logs = out / LOGS_DIR
-    logs.mkdir(parents=True)
+    logs.mkdir(parents=True, exist_ok=True)
     scenario_file = logs / "scenario.yaml"
     scenario_file.write_text(sc.text)
     overrides = {
@@ -93,10 +101,17 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
         }
     }
     args = parameter_args(scenario_file, overrides, logs)
-    commands: list[bytes] = []
+    bag_meta = {
+        **bag_info(sc.with_strategy(plan[0] if strategy is None else strategy), "replay"),
+        "replay_of": str(Path(source).resolve()),
+        "replayed_engine": info.info.get("engine", ""),
+    }
+    commands: list[tuple[float, ...]] = []
+    shm = SharedMemory()
     with (
         isolated_domain() as domain,
-        ros_session(STEPPER_NODE, domain=domain, namespace=NAMESPACE) as (me, ex),
+        ros_session(STEPPER_NODE, domain=domain, namespace=NAMESPACE, log_dir=logs) as (me, ex),
+        BagWriter(out, info=bag_meta, claimed=True) as writer,
     ):
         got: list[bytes] = []
         sub = raw_subscription(me, "command", got.append)
@@ -106,9 +121,10 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
         proc = start_process(
             [*node_command("torque_controller_node"), *args],
             log=logs / "torque_controller.log",
-            env=ros_env(domain),
+            env=ros_env(domain, log_dir=logs),
         )
         procs = {"torque_controller": proc}
+        recorder = _Recorder(writer, tool_every(sc.ts))
         try:
 
             def matched() -> bool:
@@ -119,9 +135,10 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
                 )
 
             _wait(ex, matched, 60.0, proc, logs, "the controller never matched the topics")
+            shm.sample([proc.pid])
             if strategy is None and len(set(plan)) > 1:
                 _wait(ex, client.services_are_ready, 60.0, proc, logs, "no parameter services")
-            state, ref = CODECS["state"], CODECS["reference"]
+            state, ref, cmd = CODECS["state"], CODECS["reference"], CODECS["command"]
             in_force = plan[0]
             t0 = time.perf_counter()
             for k in range(n + 1):
@@ -131,23 +148,31 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
                         [Parameter("strategy", Parameter.Type.STRING, in_force)]
                     )
                     _wait(ex, fut.done, COMMAND_TIMEOUT, proc, logs, f"switch at step {k}")
-                pub_ref.publish(ref.encode(tuple(trace.reference[k])))
-                pub_state.publish(state.encode(tuple(trace.state[k])))
+                row, reference = tuple(trace.state[k]), tuple(trace.reference[k])
+                pub_ref.publish(ref.encode(reference))
+                pub_state.publish(state.encode(row))
+                recorder.inputs(row, reference)
                 if k < n:
                     _wait(ex, lambda k=k: len(got) > k, COMMAND_TIMEOUT, proc, logs, f"step {k}")
+                    commands.append(cmd.decode(got[k]))
+                    recorder.command(commands[-1])
             wall = time.perf_counter() - t0
             proc.wait(timeout=COMMAND_TIMEOUT + 30)
-            commands = got[:n]
+        except KeyboardInterrupt:
+            raise Interrupted(
+                f"interrupted: the new bag {out} holds the first {len(commands)} of {n} steps "
+                f"replayed (closed; `predictive-drive report {out}` reads it)"
+            ) from None
         finally:
-            stop_processes(procs)
-    new = [CODECS["command"].decode(c) for c in commands]
-    _record(out, source, trace, sc, new, plan[0] if strategy is None else strategy, info.info)
+            recorder.close()
+            stop_processes(procs, urgent=True)
+    shm.clean()
     rec = trace.command
     v = COMMAND_INDEX.vector
     # the same vector, or no vector in either (field-oriented control: NaN)
-    same_vector = [c[v] == r[v] or (c[v] != c[v] and r[v] != r[v]) for c, r in zip(new, rec)]
-    same_pulses = [tuple(c[PULSES]) == tuple(r[PULSES]) for c, r in zip(new, rec)]
-    compute = sorted(c[COMMAND_INDEX.compute_ns] for c in new)
+    same_vector = [c[v] == r[v] or (c[v] != c[v] and r[v] != r[v]) for c, r in zip(commands, rec)]
+    same_pulses = [tuple(c[PULSES]) == tuple(r[PULSES]) for c, r in zip(commands, rec)]
+    compute = sorted(c[COMMAND_INDEX.compute_ns] for c in commands)
     return StepResult(
         bag=out,
         steps=n,
@@ -157,6 +182,39 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
         compute_us_per_step=compute[len(compute) // 2] / 1e3,
         steps_per_s=n / wall,
     )
+
+
+class _Recorder:
+    """The new bag as the replay goes, in log-time order: per step the recorded state and
+    reference, the new command, then the state's tool messages (/clock, /drive/joint_states);
+    the last state (it has no command) with its tool messages on :meth:`close`."""
+
+    def __init__(self, writer: BagWriter, every: int) -> None:
+        self.writer = writer
+        self.every = every
+        self._pending: tuple[float, ...] | None = None
+
+    def inputs(self, state: tuple[float, ...], reference: tuple[float, ...]) -> None:
+        ns = stamp_ns(state[1])
+        self.writer.write("state", ns, CODECS["state"].encode(state))
+        self.writer.write("reference", ns, CODECS["reference"].encode(reference))
+        self._pending = state
+
+    def command(self, command: tuple[float, ...]) -> None:
+        state = self._pending
+        assert state is not None
+        self.writer.write("command", stamp_ns(state[1]), CODECS["command"].encode(command))
+        self._tools(state)
+        self._pending = None
+
+    def close(self) -> None:
+        if self._pending is not None:
+            self._tools(self._pending)
+            self._pending = None
+
+    def _tools(self, state: tuple[float, ...]) -> None:
+        for key, t_ns, data in tool_messages(state, self.every):
+            self.writer.write(key, t_ns, data)
 
 
 def _wait(
@@ -170,33 +228,3 @@ def _wait(
         if time.monotonic() > deadline:
             raise GraphError(f"replay into the torque controller: {what} within {timeout} s")
         ex.spin_once(timeout_sec=0.01)
-
-
-def _record(
-    out: Path,
-    source: str | Path,
-    trace: Trace,
-    sc: Any,
-    commands: list[tuple[float, ...]],
-    strategy: str,
-    original: dict[str, str],
-) -> None:
-    """The new bag: the recorded states, references and tool topics, the new commands, in
-    log-time order."""
-    info = {
-        **bag_info(sc.with_strategy(strategy), "replay"),
-        "replay_of": str(Path(source).resolve()),
-        "replayed_engine": original.get("engine", ""),
-    }
-    every = tool_every(sc.ts)
-    with BagWriter(out, info=info) as w:
-        state, ref, cmd = CODECS["state"], CODECS["reference"], CODECS["command"]
-        for k in range(trace.steps + 1):
-            row = tuple(trace.state[k])
-            ns = stamp_ns(row[1])
-            w.write("state", ns, state.encode(row))
-            w.write("reference", ns, ref.encode(tuple(trace.reference[k])))
-            if k < trace.steps:
-                w.write("command", ns, cmd.encode(commands[k]))
-            for key, t_ns, data in tool_messages(row, every):
-                w.write(key, t_ns, data)

@@ -112,6 +112,10 @@ class TorqueControllerNode(WatchedNode):
             self.ctrl.set_strategy(name)
             self.get_logger().info(f"strategy → {name} from step {self._k}")
 
+    @property
+    def last_step(self) -> int:
+        return self._k - 1
+
     def stalled_message(self) -> str:
         if self.schedule and self.schedule[0] <= self._k:
             return (

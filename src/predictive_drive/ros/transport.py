@@ -4,14 +4,17 @@
 from __future__ import annotations
 
 import importlib
+import os
 from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..interface import TOPICS, Qos
+from .placement import ros_log_dir
 
 __all__ = [
     "LocalBus",
@@ -48,15 +51,26 @@ def executor(context: Any = None) -> Any:
 
 
 @contextmanager
-def ros_context(domain: int) -> Iterator[Any]:
+def ros_context(domain: int, *, log_dir: Path | None = None) -> Iterator[Any]:
     """An rclpy context of its own on ROS domain ``domain``, shut down however the block ends
-    (a tool's process: the launcher's watch, the player, the stepper, ``param``)."""
+    (a tool's process: the launcher's watch, the player, the stepper, ``param``); rcl's log
+    files go to ``log_dir`` or a temp folder (see :func:`~.placement.ros_log_dir`)."""
     import rclpy
     from rclpy.context import Context
     from rclpy.utilities import try_shutdown
 
+    # rcl reads it when this process first initialises logging: set for that moment only, so
+    # the node processes this process starts later still log with their runs
+    before = os.environ.get("ROS_LOG_DIR")
+    ros_log_dir(os.environ, log_dir)
     ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain)
+    try:
+        rclpy.init(context=ctx, domain_id=domain)
+    finally:
+        if before is None:
+            os.environ.pop("ROS_LOG_DIR", None)
+        else:
+            os.environ["ROS_LOG_DIR"] = before
     try:
         yield ctx
     finally:
@@ -65,13 +79,13 @@ def ros_context(domain: int) -> Iterator[Any]:
 
 @contextmanager
 def ros_session(
-    name: str, *, domain: int, namespace: str | None = None
+    name: str, *, domain: int, namespace: str | None = None, log_dir: Path | None = None
 ) -> Iterator[tuple[Any, Any]]:
     """``(node, executor)``: a node ``name`` (in ``namespace``) on a context of its own, added
     to an executor of its own; node, executor and context end with the block."""
     import rclpy
 
-    with ros_context(domain) as ctx:
+    with ros_context(domain, log_dir=log_dir) as ctx:
         node = rclpy.create_node(name, namespace=namespace, context=ctx)
         ex = executor(ctx)
         ex.add_node(node)
