@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import yaml
 
-from mcapcheck import ordering_faults
+from mcapcheck import ordering_faults, rewrite_bag
 from predictive_drive.api.report import report
 from predictive_drive.api.run import run, run_inprocess_to_bag
 from predictive_drive.bag import BagWriter
@@ -296,37 +296,15 @@ def test_repair_writes_what_the_cut_file_holds_in_log_time_order(recorded, tmp_p
     written one after the other (each in its own order, 16 KiB chunks), the file cut at 70 %.
     `repair` writes every complete message the cut file holds, in log-time order, each channel's
     sequence 1, 2, 3, ..., the original kept beside it."""
-    from mcap.reader import make_reader
-    from mcap.writer import CompressionType, Writer
-
     from predictive_drive.bag import read_records, repair_bag
 
-    src = next(recorded[0].glob("*.mcap"))
     scrambled = tmp_path / "scrambled"
-    scrambled.mkdir()
-    shutil.copy(recorded[0] / "metadata.yaml", scrambled / "metadata.yaml")
+    n_msgs = rewrite_bag(recorded[0], scrambled, order=lambda ch, m: ch.id)  # channel by channel
     path = scrambled / "scrambled_0.mcap"
-    with open(src, "rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        msgs = sorted(reader.iter_messages(log_time_order=False), key=lambda m: m[1].id)
-        metadata = list(reader.iter_metadata())
-    with open(path, "wb") as f:
-        w = Writer(f, chunk_size=16 * 1024, compression=CompressionType.ZSTD)
-        w.start(profile="ros2", library="test")
-        for s in summary.schemas.values():
-            w.register_schema(s.name, s.encoding, s.data)
-        for c in summary.channels.values():
-            w.register_channel(c.topic, c.message_encoding, c.schema_id, c.metadata)
-        for m in metadata:
-            w.add_metadata(m.name, m.metadata)
-        for _, ch, msg in msgs:
-            w.add_message(ch.id, msg.log_time, msg.data, msg.publish_time, msg.sequence)
-        w.finish()
     data = path.read_bytes()
     path.write_bytes(data[: int(len(data) * 0.7)])
     held, _, complete = read_records(path)
-    assert not complete and 0 < len(held) < len(msgs)
+    assert not complete and 0 < len(held) < n_msgs
     backwards, _, n = ordering_faults(path)
     assert backwards > 0  # the cut file is out of order
 

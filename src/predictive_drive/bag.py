@@ -6,12 +6,15 @@ The MCAP file uses profile ``ros2``, ``ros2msg`` schemas with full definitions, 
 channel metadata ``offered_qos_profiles`` and ``topic_type_hash``, a ``rosbag2`` metadata record, and a
 ``predictive_drive`` metadata record with the scenario file, strategy names, engine and version.
 Chunks are small and flushed as they fill, so a file cut short by a crash still yields every complete
-chunk; :func:`read_records` falls back to a streaming read for such files.
+chunk; :func:`read_records` falls back to a streaming read for such files. The file is written by
+:class:`~predictive_drive.mcapio.ChunkWriter` (byte for byte what the ``mcap`` library writes,
+several times faster); the library reads it back where speed does not matter (repair, replay).
 """
 
 from __future__ import annotations
 
 import fcntl
+import functools
 import heapq
 import json
 import os
@@ -21,18 +24,18 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, cast
+from typing import Any
 
 import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, Writer
 
 from . import __version__
 from .errors import BagError
 from .interface import BAG_TOPICS, TOPICS
+from .mcapio import MAGIC, ChunkWriter, MessageGroup
 from .schemas import message_definition, type_hash
 
 __all__ = [
@@ -46,6 +49,7 @@ __all__ = [
     "first_log_time",
     "claim_bag_dir",
     "iter_messages",
+    "load_yaml",
     "mcap_file",
     "not_a_recording",
     "read_records",
@@ -53,9 +57,11 @@ __all__ = [
     "repair_bag",
 ]
 
-#: a chunk is written (and flushed to the OS) when it holds this many bytes: a writer killed
-#: outright loses at most the chunk it was filling, ~500 steps of a 20 kHz run (25 ms simulated)
-CHUNK_SIZE = 256 * 1024
+#: a chunk is sealed when it holds this many bytes, then compressed and written (and flushed to
+#: the OS) by the writer's own thread while the next one fills: a writer killed outright loses
+#: at most the chunk it was filling and the one in flight, ~420 steps of a 20 kHz run (21 ms
+#: simulated; ~620 bytes a step)
+CHUNK_SIZE = 128 * 1024
 META_NAME = "predictive_drive"
 #: a bag directory may hold this folder besides the recording: the node logs of the run
 LOGS_DIR = "logs"
@@ -176,6 +182,25 @@ def claim_bag_dir(directory: str | Path) -> Iterator[Path]:
         os.close(fd)
 
 
+#: libyaml's safe loader where PyYAML has it (ten times faster than the pure-Python one)
+_YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def load_yaml(text: str) -> Any:
+    """``yaml.safe_load``, with libyaml when there is one."""
+    return yaml.load(text, Loader=_YAML_LOADER)  # noqa: S506 — a safe loader
+
+
+_YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
+
+def dump_yaml(doc: Any) -> str:
+    """``yaml.safe_dump`` in document order, with libyaml when there is one, long strings on
+    one line (how the two emitters fold them differs)."""
+    return str(yaml.dump(doc, Dumper=_YAML_DUMPER, sort_keys=False, width=1 << 16))
+
+
+@functools.cache
 def _qos_yaml(topic_key: str) -> str:
     return yaml.safe_dump([TOPICS[topic_key].qos.rosbag2()], sort_keys=False).strip()
 
@@ -204,17 +229,11 @@ class BagWriter:
             self._file = _FlushingFile(self.path)
         except OSError as e:
             raise BagError(f"cannot write the bag {self.directory}: {e.strerror}") from None
-        # the writer takes any object with write/tell/flush (an IO to its annotations)
-        out = cast(IO[bytes], self._file)
-        self._writer = Writer(out, chunk_size=CHUNK_SIZE, compression=CompressionType.ZSTD)
+        self._writer = ChunkWriter(self._file, chunk_size=CHUNK_SIZE, background=True)
         self._writer.start(profile="ros2", library=f"predictive_drive {__version__}")
         self._channels: dict[str, int] = {}
-        self._counts: dict[str, int] = {}
-        self._seq: dict[str, int] = {}  #: last sequence number by channel (rosbag2: per topic)
         self._held: list[tuple[int, int, str, bytes]] = []  #: heap of (log time, arrival, ...)
         self._arrivals = 0
-        self._first: int | None = None
-        self._last = 0
         self._closed = False
         self._failed = ""
         #: rosbag2's custom_data: written into metadata.yaml and the rosbag2 record on close
@@ -231,8 +250,6 @@ class BagWriter:
                 schemas[topic.type],
                 {"offered_qos_profiles": _qos_yaml(key), "topic_type_hash": type_hash(topic.type)},
             )
-            self._counts[key] = 0
-            self._seq[key] = 0
         if stamp:
             info = {**info, "package_version": __version__, "created_unix_s": f"{time.time():.3f}"}
         self._writer.add_metadata(
@@ -246,21 +263,24 @@ class BagWriter:
         publish time. BagError when the file cannot take it (a full disk): the bag is then
         incomplete. Messages written in log-time order make a file readers need not sort; a
         writer that receives them out of order uses :meth:`hold` and :meth:`release`."""
-        seq = self._seq[topic_key] + 1
         try:
-            self._writer.add_message(self._channels[topic_key], t_ns, data, t_ns, seq)
+            self._writer.add(self._channels[topic_key], t_ns, data)
         except OSError as e:
-            self._failed = f"{e.strerror or e}"
-            raise BagError(
-                f"writing the bag {self.directory} failed ({self._failed}); it holds what was "
-                f"written before, up to its last complete chunk"
-            ) from None
-        self._seq[topic_key] = seq
-        self._counts[topic_key] += 1
-        if self._first is None:
-            self._first = t_ns
-        if t_ns > self._last:
-            self._last = t_ns
+            raise self.write_failed(e) from None
+
+    def group(self, parts: Sequence[tuple[str, bytes, int]]) -> MessageGroup:
+        """Messages written together (:class:`~.mcapio.MessageGroup`): (topic key, payload
+        prefix, float64 count) each. Its ``add`` raises OSError: pass it to
+        :meth:`write_failed`."""
+        return self._writer.group([(self._channels[key], p, n) for key, p, n in parts])
+
+    def write_failed(self, e: OSError) -> BagError:
+        """The error to raise for a write that failed (the bag takes nothing more)."""
+        self._failed = f"{e.strerror or e}"
+        return BagError(
+            f"writing the bag {self.directory} failed ({self._failed}); it holds what was "
+            f"written before, up to its last complete chunk"
+        )
 
     def hold(self, topic_key: str, t_ns: int, data: bytes) -> None:
         """One message to be written in log-time order once :meth:`release` passes its time
@@ -279,7 +299,7 @@ class BagWriter:
     @property
     def last_ns(self) -> int:
         """The latest log time written so far (0 before the first message)."""
-        return self._last
+        return self._writer.last_time
 
     @property
     def held(self) -> int:
@@ -297,6 +317,7 @@ class BagWriter:
                 self.release(2**63)  # what is held: nothing more will come
             self._finish()
         except OSError as e:
+            self._writer.close()
             try:
                 self._file.close()
             except OSError:
@@ -327,19 +348,18 @@ class BagWriter:
         self._writer.add_metadata(
             "rosbag2",
             {
-                "serialized_metadata": yaml.safe_dump(
-                    self._metadata()["rosbag2_bagfile_information"], sort_keys=False
-                ),
+                "serialized_metadata": dump_yaml(self._metadata()["rosbag2_bagfile_information"]),
                 "ROS_DISTRO": "jazzy",
             },
         )
         self._writer.finish()
+        self._writer.close()
         self._file.close()
         self._write_metadata_yaml()
 
     @property
     def message_count(self) -> int:
-        return sum(self._counts.values())
+        return self._writer.message_count
 
     def __enter__(self) -> BagWriter:
         return self
@@ -348,8 +368,8 @@ class BagWriter:
         self.close()
 
     def _metadata(self) -> dict[str, Any]:
-        start = self._first or 0
-        duration = max(0, self._last - start)
+        start = self._writer.first_time or 0
+        duration = max(0, self._writer.last_time - start)
         count = self.message_count
         return {
             "rosbag2_bagfile_information": {
@@ -367,7 +387,7 @@ class BagWriter:
                             "offered_qos_profiles": [t.qos.rosbag2()],
                             "type_description_hash": type_hash(t.type),
                         },
-                        "message_count": self._counts[key],
+                        "message_count": self._writer.counts[self._channels[key]],
                     }
                     for key, t in BAG_TOPICS.items()
                 ],
@@ -389,7 +409,7 @@ class BagWriter:
 
     def _write_metadata_yaml(self) -> None:
         tmp = self.directory / "metadata.yaml.tmp"
-        tmp.write_text(yaml.safe_dump(self._metadata(), sort_keys=False))
+        tmp.write_text(dump_yaml(self._metadata()))
         tmp.replace(self.directory / "metadata.yaml")
 
 
@@ -412,10 +432,6 @@ def mcap_file(bag: str | Path) -> Path:
         raise BagError(f"{p}: no such bag directory or .mcap file")
     _check_magic(p)
     return p
-
-
-#: the first bytes of every MCAP file
-MAGIC = b"\x89MCAP0\r\n"
 
 
 def _check_magic(path: Path) -> None:
@@ -448,7 +464,7 @@ def _check_metadata_yaml(path: Path) -> None:
     if not path.exists():
         return
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path.read_text())
     except (yaml.YAMLError, UnicodeDecodeError) as e:
         raise BagError(f"{path}: not rosbag2 metadata ({type(e).__name__})") from None
     if not (isinstance(doc, dict) and isinstance(doc.get("rosbag2_bagfile_information"), dict)):
@@ -580,7 +596,7 @@ def recorded_topics(bag: str | Path) -> dict[str, RecordedTopic]:
     out = {}
     for cid, ch in summary.channels.items():
         schema = summary.schemas.get(ch.schema_id)
-        qos = yaml.safe_load(ch.metadata.get("offered_qos_profiles", "[]")) or []
+        qos = load_yaml(ch.metadata.get("offered_qos_profiles", "[]")) or []
         out[ch.topic] = RecordedTopic(
             ch.topic, schema.name if schema else "", qos, counts.get(cid, 0)
         )

@@ -9,14 +9,16 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import yaml
 
-from .bag import META_NAME, mcap_file, not_a_recording, read_records
-from .codec import CODECS, ParameterEvent, decode_parameter_event
+from .bag import META_NAME, load_yaml, mcap_file, not_a_recording
+from .codec import CODECS, MultiArrayCodec, ParameterEvent, decode_parameter_event
 from .core.signals import STATE_INDEX
-from .core.trace import RECORDS, Trace, TraceBuilder
+from .core.trace import Trace
 from .errors import BagError
 from .interface import RECORD_TOPICS, TOPICS
+from .mcapio import McapContents, Messages, read_file
 
 __all__ = ["BagInfo", "BagStatus", "bag_status", "read_bag"]
 
@@ -67,53 +69,96 @@ class BagInfo:
 
 
 def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
-    """Decode the per-step topics of a recording into a :class:`Trace` (complete steps only)."""
+    """Decode the per-step topics of a recording into a :class:`Trace` (complete steps only).
+
+    The file is read chunk by chunk (:func:`~.mcapio.read_file`); each per-step topic's messages
+    of this version's layout are decoded in one numpy gather, others one by one by field name."""
     path = mcap_file(bag)
-    msgs, meta, complete = read_records(path)
+    try:
+        contents = read_file(path)
+    except ValueError:
+        raise not_a_recording(path, {}, 0) from None
+    except OSError as e:
+        raise BagError(f"{path}: cannot read it: {e.strerror}") from None
+    meta = contents.metadata
     if META_NAME not in meta:
-        raise not_a_recording(path, meta, len(msgs))
+        raise not_a_recording(path, meta, contents.messages)
     info = meta[META_NAME]
     by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
-    rows: dict[str, dict[int, tuple[float, ...]]] = {rec: {} for rec in RECORDS}
+    tables: dict[str, np.ndarray] = {}
     counts: dict[str, int] = {}
     events: list[tuple[int, ParameterEvent]] = []
-    for channel, message in msgs:
-        counts[channel.topic] = counts.get(channel.topic, 0) + 1
-        rec = by_name.get(channel.topic)
-        if rec is None:
-            if channel.topic == TOPICS["parameter_events"].name:
-                events.append((message.log_time, decode_parameter_event(message.data)))
-            continue
-        values = CODECS[RECORD_TOPICS[rec]].decode(message.data)
-        rows[rec][int(values[K])] = values
-    ts = float(info["ts"])
-    builder = TraceBuilder(ts, tuple(json.loads(info["strategy_names"])))
+    channels = sorted((m for m in contents.channels.values() if len(m)), key=lambda m: m.order[0])
+    for m in channels:
+        topic = m.channel.topic
+        counts[topic] = counts.get(topic, 0) + len(m)
+        rec = by_name.get(topic)
+        if rec is not None:
+            tables[rec] = _by_step(
+                _values(contents, m, CODECS[RECORD_TOPICS[rec]]), tables.get(rec)
+            )
+        elif topic == TOPICS["parameter_events"].name:
+            events += [
+                (m.log_times[i], decode_parameter_event(contents.payload(m, i)))
+                for i in range(len(m))
+            ]
     # keep the longest prefix of whole steps: states and references 0..n, commands 0..n-1
-    n = 0
-    while (
-        n in rows["command"]
-        and n + 1 in rows["state"]
-        and n + 1 in rows["reference"]
-        and n in rows["state"]
-        and n in rows["reference"]
-    ):
-        n += 1
+    empty = np.empty((0, 1))
+    state, reference, command = (tables.get(r, empty) for r in ("state", "reference", "command"))
+    have = [~np.isnan(t[:, 0]) for t in (state, reference, command)]
+    whole = min(len(have[0]) - 1, len(have[1]) - 1, len(have[2]))
+    ok = have[0][:whole] & have[1][:whole] & have[2][:whole]
+    ok &= have[0][1 : whole + 1] & have[1][1 : whole + 1]
+    n = int(np.argmin(ok)) if not ok.all() else max(whole, 0)
     if n == 0:
         raise BagError(f"{path}: the recording holds no complete step")
-    for k in range(n + 1):
-        builder.add("state", rows["state"][k])
-        builder.add("reference", rows["reference"][k])
-    for k in range(n):
-        builder.add("command", rows["command"][k])
+    names = tuple(json.loads(info["strategy_names"]))
+    trace = Trace(
+        float(info["ts"]),
+        np.ascontiguousarray(state[: n + 1]),
+        np.ascontiguousarray(reference[: n + 1]),
+        np.ascontiguousarray(command[:n]),
+        names,
+    )
     custom = _custom_data(meta.get("rosbag2", {}))
     events.sort(key=lambda e: e[0])
-    return builder.build(), BagInfo(path, info, counts, complete, custom, tuple(events))
+    return trace, BagInfo(path, info, counts, contents.complete, custom, tuple(events))
+
+
+def _values(contents: McapContents, m: Messages, codec: MultiArrayCodec) -> np.ndarray:
+    """(n, fields) values of a per-step topic's messages: of this layout in one gather, of
+    another (a recording of another version) one by one by field name."""
+    width = len(codec.fields)
+    if all(n == codec.size for n in m.lengths):
+        raw = m.payloads(contents.data, codec.size)
+        prefix = np.frombuffer(codec.prefix, dtype=np.uint8)
+        if (raw[:, : len(prefix)] == prefix).all():
+            values = raw[:, len(prefix) :].copy().view("<f8")
+            return values.reshape(len(m), width)
+    rows = [codec.decode(contents.payload(m, i)) for i in range(len(m))]
+    return np.array(rows, dtype=np.float64).reshape(len(m), width)
+
+
+def _by_step(values: np.ndarray, into: np.ndarray | None) -> np.ndarray:
+    """Rows placed at their step k (the first field); NaN rows where a step is missing; a later
+    message of the same step replaces an earlier one (as a recorder would have kept it)."""
+    k = values[:, K]
+    good = (k >= 0) & (k == np.floor(k))
+    values, ks = values[good], k[good].astype(np.int64)
+    size = int(ks.max()) + 1 if len(ks) else 0
+    if into is not None:
+        size = max(size, len(into))
+    out = np.full((size, values.shape[1]), np.nan)
+    if into is not None:
+        out[: len(into)] = into
+    out[ks] = values
+    return out
 
 
 def _custom_data(rosbag2: dict[str, str]) -> dict[str, str]:
     """custom_data of the rosbag2 metadata record ({} for a bag that never closed)."""
     try:
-        serialized = yaml.safe_load(rosbag2.get("serialized_metadata", "")) or {}
+        serialized = load_yaml(rosbag2.get("serialized_metadata", "")) or {}
     except yaml.YAMLError:
         return {}
     custom = serialized.get("custom_data") if isinstance(serialized, dict) else None

@@ -110,6 +110,10 @@ class GraphRate:
     startup_s: float
 
 
+def _median(values: list[float]) -> float:
+    return sorted(values)[len(values) // 2]
+
+
 @dataclass(frozen=True)
 class Bench:
     """``bench``: throughput figures of this machine, all from one call (compare them only as
@@ -118,8 +122,10 @@ class Bench:
     steps: int  #: steps of each in-process run
     core_steps_per_s: float  #: the in-process loop without recording, median of the repeats
     core_steps_per_s_runs: list[float]
-    inprocess_recorded_steps_per_s: float  #: the in-process loop writing its bag
-    report_steps_per_s: float  #: reading that bag back and evaluating it (what report does)
+    #: the in-process loop writing its bag, median of the repeats (each after a core run)
+    inprocess_recorded_steps_per_s: float
+    #: reading that bag back and evaluating it (what report does), median of the repeats
+    report_steps_per_s: float
     compute_us_per_step: dict[str, float]  #: median control-law time per strategy
     real_time_steps_per_s: float
     graph: list[GraphRate]
@@ -153,25 +159,28 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
             "taken after the first 0.05 s)"
         )
     sc = load_scenario("im_paper", strategy="db_mptc")
-    rates = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        run_inprocess(sc, steps=steps)
-        rates.append(steps / (time.perf_counter() - t0))
+    rates: list[float] = []
+    recorded: list[float] = []
+    report_rates: list[float] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        # interleaved, so that the machine's drift touches each figure alike; the medians
+        for i in range(repeats):
+            t0 = time.perf_counter()
+            run_inprocess(sc, steps=steps)
+            rates.append(steps / (time.perf_counter() - t0))
+            bag = Path(tmp) / f"bench{i}"
+            t0 = time.perf_counter()
+            n = run_inprocess_to_bag(sc.with_duration(steps * sc.ts), bag)
+            recorded.append(n / (time.perf_counter() - t0))
+            # what `report` does: read the recording back and evaluate it
+            t0 = time.perf_counter()
+            evaluate(bag)
+            report_rates.append(n / (time.perf_counter() - t0))
     compute = {}
     for name in strategy_names(sc.family):
         tr = run_inprocess(sc.with_strategy(name), steps=steps)
         m = compute_metrics(tr, t_start=0.05)
         compute[name] = m.compute_ns_median / 1e3
-    with tempfile.TemporaryDirectory() as tmp:
-        t0 = time.perf_counter()
-        bag = Path(tmp) / "bench"
-        n = run_inprocess_to_bag(sc.with_duration(steps * sc.ts), bag)
-        recorded = n / (time.perf_counter() - t0)
-        # what `report` does: read the recording back and evaluate it
-        t0 = time.perf_counter()
-        evaluate(bag)
-        report_rate = n / (time.perf_counter() - t0)
     graph = []
     if ros:
         for g in QUICK_RUNS if quick else GRAPH_RUNS:
@@ -185,10 +194,10 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
             graph.append(GraphRate(g, r["steps_per_s"], r["startup_s"]))
     return Bench(
         steps=steps,
-        core_steps_per_s=sorted(rates)[len(rates) // 2],
+        core_steps_per_s=_median(rates),
         core_steps_per_s_runs=rates,
-        inprocess_recorded_steps_per_s=recorded,
-        report_steps_per_s=report_rate,
+        inprocess_recorded_steps_per_s=_median(recorded),
+        report_steps_per_s=_median(report_rates),
         compute_us_per_step=compute,
         real_time_steps_per_s=1.0 / sc.ts,
         graph=graph,

@@ -104,7 +104,9 @@ def run_inprocess_to_bag(
                 live=None if live is None else live.offer,
             )
             try:
-                trace = run_inprocess(sc, switches=switches, sinks=[rec.record], progress=progress)
+                trace = run_inprocess(
+                    sc, switches=switches, sinks=[rec.record_step], progress=progress
+                )
             except KeyboardInterrupt:
                 rec.finish("interrupted")
                 raise

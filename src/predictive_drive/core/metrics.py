@@ -317,6 +317,15 @@ class _Sums:
         }
 
 
+def _running_sum(start: float, values: np.ndarray, square: bool) -> float:
+    """``start`` plus each value (squared) in turn, as ``x += v * v`` does step by step: the
+    same float (an accumulation is sequential, unlike numpy's pairwise ``sum``)."""
+    terms = np.empty(len(values) + 1)
+    terms[0] = start
+    terms[1:] = values * values if square else values
+    return float(np.add.accumulate(terms)[-1])
+
+
 class LiveMetrics:
     """Running figures while a run is in progress (for /diagnostics), fed record by record.
 
@@ -349,7 +358,14 @@ class LiveMetrics:
         if len(slot) < 3:
             return None
         del self._pending[k]
-        s, r, c = slot["state"], slot["reference"], slot["command"]
+        return self.add_step(slot["state"], slot["reference"], slot["command"])
+
+    def add_step(
+        self, s: tuple[float, ...], r: tuple[float, ...], c: tuple[float, ...]
+    ) -> dict[str, float] | None:
+        """Feed step k's state, reference and command at once (what :meth:`add` does when the
+        third of them arrives); returns a snapshot when a diagnostics period completes."""
+        k = int(s[0])
         S, R, C = STATE_INDEX, REFERENCE_INDEX, COMMAND_INDEX
         te = s[S.torque]
         errors = (
@@ -364,6 +380,36 @@ class LiveMetrics:
         self._last_k = k
         self._last_t = s[S.t]
         self._last_strategy = c[C.strategy]
+        if self.steps % self.every:
+            return None
+        return self.flush()
+
+    def add_steps(self, s: np.ndarray, r: np.ndarray, c: np.ndarray) -> dict[str, float] | None:
+        """:meth:`add_step` of consecutive steps at once (rows of state, reference and command),
+        the same figures bit for bit (the sums accumulate in step order); the steps must not
+        run past the end of a diagnostics period (``every - steps % every`` of them at most).
+        Returns the snapshot when they complete one."""
+        m = len(s)
+        if m == 0:
+            return None
+        if m > self.every - self.steps % self.every:
+            raise ValueError("add_steps: the steps run past the end of a diagnostics period")
+        S, R, C = STATE_INDEX, REFERENCE_INDEX, COMMAND_INDEX
+        te = s[:, S.torque]
+        flux = [
+            math.hypot(a, b) for a, b in zip(s[:, S.psi_alpha].tolist(), s[:, S.psi_beta].tolist())
+        ]
+        p = self._period
+        p.t_err2 = _running_sum(p.t_err2, te - r[:, R.torque_ref], True)
+        p.psi_err2 = _running_sum(p.psi_err2, np.asarray(flux) - r[:, R.flux_ref], True)
+        p.est_err2 = _running_sum(p.est_err2, c[:, C.torque_est] - te, True)
+        p.speed_err2 = _running_sum(p.speed_err2, s[:, S.omega_m] - r[:, R.speed_ref], True)
+        p.transitions = _running_sum(p.transitions, s[:, S.transitions], False)
+        p.n += m
+        self.steps += m
+        self._last_k = int(s[-1, 0])
+        self._last_t = float(s[-1, S.t])
+        self._last_strategy = float(c[-1, C.strategy])
         if self.steps % self.every:
             return None
         return self.flush()

@@ -15,11 +15,15 @@ from .control import Controller, make_controller, strategy_names
 from .control.speed_pi import SpeedPI
 from .plant import InverterPlant, make_plant
 from .scenario import PlantParams, Scenario
+from .signals import Command, Reference, State
 from .trace import Trace, TraceBuilder
 
 __all__ = ["Components", "build", "build_controller", "build_plant", "run_inprocess"]
 
-Sink = Callable[[str, tuple[float, ...]], None]
+#: called with each step's state k, reference k and command k (None after the last step, whose
+#: state and reference close the run), then the same rows packed as little-endian doubles (what
+#: the trace keeps; b"" for the missing command)
+Sink = Callable[[State, Reference, Command | None, bytes, bytes, bytes], None]
 
 
 @dataclasses.dataclass
@@ -80,13 +84,12 @@ def run_inprocess(
                 ctrl.set_strategy(pending.pop(0)[1])
             next_switch = pending[0][0] if pending else n
         cmd = ctrl.step(state, ref)
-        s_add(s_pack(*state))
-        r_add(r_pack(*ref))
-        c_add(c_pack(*cmd))
+        sb, rb, cb = s_pack(*state), r_pack(*ref), c_pack(*cmd)
+        s_add(sb)
+        r_add(rb)
+        c_add(cb)
         for s in sinks:
-            s("state", state)
-            s("reference", ref)
-            s("command", cmd)
+            s(state, ref, cmd, sb, rb, cb)
         if immediate:
             state = plant.step(cmd)
             ref = pi.step(state)
@@ -95,11 +98,11 @@ def run_inprocess(
             state = plant.step(cmd)
         if progress is not None and k % every == 0:
             progress(k)
-    s_add(s_pack(*state))
-    r_add(r_pack(*ref))
+    sb, rb = s_pack(*state), r_pack(*ref)
+    s_add(sb)
+    r_add(rb)
     for s in sinks:
-        s("state", state)
-        s("reference", ref)
+        s(state, ref, None, sb, rb, b"")
     if progress is not None:
         progress(n)
     return builder.build()

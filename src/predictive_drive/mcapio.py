@@ -1,0 +1,576 @@
+"""MCAP at the recorder's pace: a chunked writer and a chunk reader for this package's bags.
+
+The ``mcap`` library builds every message through a record object and a ``BytesIO`` and reads
+every record through a byte stream; for the ~3 messages a step of a 20 kHz drive that costs more
+than simulating it. Here the hot paths are our own and everything rare is the library's:
+
+- :class:`ChunkWriter` appends each message to the open chunk with one ``struct`` pack and keeps
+  the message index and statistics as plain lists and counters; headers, schemas, channels,
+  metadata, chunk and index records and the summary are the library's record classes. With the
+  same calls it writes a file byte for byte equal to ``mcap.writer.Writer``'s (chunked, zstd,
+  every index, statistics, summary offsets, CRCs on; ``test_mcapio.py`` holds it to that).
+- :func:`read_file` walks a file's top-level records, decompresses each chunk whole and notes
+  where each message lies, so a caller can decode a channel of fixed-size messages in one numpy
+  gather (:meth:`Messages.payloads`). A file cut short is read up to its last whole chunk, as the
+  library's stream reader reads it.
+"""
+
+from __future__ import annotations
+
+import struct
+import sys
+import zlib
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import IO, Any
+
+import numpy as np
+import zstandard
+from mcap.data_stream import ReadDataStream, RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (
+    Channel,
+    ChunkIndex,
+    DataEnd,
+    Footer,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+
+__all__ = ["MAGIC", "ChunkWriter", "McapContents", "MessageGroup", "Messages", "read_file"]
+
+#: the first (and last) bytes of every MCAP file
+MAGIC = b"\x89MCAP0\r\n"
+#: a message record's head: opcode, record length, channel, sequence, log time, publish time
+_MESSAGE = struct.Struct("<BQHIQQ")
+_MESSAGE_HEAD = _MESSAGE.size  # 31
+_RECORD = struct.Struct("<BQ")
+_MESSAGE_FIELDS = struct.Struct("<HIQQ")
+_CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed crc
+#: a chunk record up to its compression string: opcode, length, the head, the string's length
+_CHUNK_RECORD = struct.Struct("<BQQQQII")
+
+
+class ChunkWriter:
+    """Write an MCAP file to ``out`` (anything with ``write`` and ``tell``): messages go into
+    chunks of about ``chunk_size`` uncompressed bytes, each zstd-compressed and written whole
+    when full. Call :meth:`start`, register schemas and channels, add messages and metadata,
+    then :meth:`finish`. An ``OSError`` of ``out`` reaches the caller as it happens."""
+
+    def __init__(self, out: IO[bytes] | Any, *, chunk_size: int, background: bool = False) -> None:
+        """``background``: a thread of its own compresses and writes each full chunk while the
+        caller goes on filling the next (zstd and the file release the GIL); one chunk is in
+        flight at most. Call :meth:`close` when done (``finish`` does not)."""
+        self._out = out
+        self._pool = ThreadPoolExecutor(1, "mcap-chunks") if background else None
+        if background:
+            _quick_switch(+1)
+        self._pending: tuple[Future[tuple[bytes, int]], Any] | None = None
+        self._chunk_size = chunk_size
+        self._zstd = zstandard.ZstdCompressor(level=3)  # what zstandard.compress() uses
+        self._chunk = bytearray()
+        self._index: dict[int, list[int]] = {}  #: channel → [log time, offset, ...] this chunk
+        self._schemas: list[Schema] = []
+        self._channels: list[Channel] = []
+        #: messages by channel id (index 0 unused): the last sequence number :meth:`add` gave
+        self.counts = [0]
+        self._first_seen: dict[int, None] = {}  #: channels in order of their first message
+        self._chunk_indexes: list[ChunkIndex] = []  #: of the chunks written
+        self._bounds: list[tuple[int, int]] = []  #: (first, last) log time of each sealed chunk
+        self._metadata_indexes: list[MetadataIndex] = []
+
+    def start(self, *, profile: str, library: str) -> None:
+        self._out.write(MAGIC)
+        self._records(Header(profile, library))
+
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
+        self._schemas.append(schema)
+        self._chunk += _record_bytes(schema)
+        self._maybe_finalize()
+        return schema.id
+
+    def register_channel(
+        self, topic: str, message_encoding: str, schema_id: int, metadata: dict[str, str]
+    ) -> int:
+        channel = Channel(
+            id=len(self._channels) + 1,
+            topic=topic,
+            message_encoding=message_encoding,
+            schema_id=schema_id,
+            metadata=metadata,
+        )
+        self._channels.append(channel)
+        self.counts.append(0)
+        self._chunk += _record_bytes(channel)
+        self._maybe_finalize()
+        return channel.id
+
+    def add(self, channel_id: int, time_ns: int, data: bytes) -> None:
+        """A message logged and published at ``time_ns``, with the channel's next sequence
+        number (1, 2, 3, ..., as rosbag2 numbers them per topic)."""
+        counts = self.counts
+        seq = counts[channel_id] = counts[channel_id] + 1
+        chunk = self._chunk
+        index = self._index.get(channel_id)
+        if index is None:
+            index = self._index[channel_id] = []
+        index += (time_ns, len(chunk))
+        chunk += _MESSAGE.pack(5, 22 + len(data), channel_id, seq, time_ns, time_ns)
+        chunk += data
+        if len(chunk) > self._chunk_size:
+            self._finalize()
+
+    def add_message(
+        self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int
+    ) -> None:
+        """Any message (``mcap.writer.Writer.add_message``'s arguments)."""
+        self.counts[channel_id] += 1
+        chunk = self._chunk
+        index = self._index.get(channel_id)
+        if index is None:
+            index = self._index[channel_id] = []
+        index += (log_time, len(chunk))
+        chunk += _MESSAGE.pack(5, 22 + len(data), channel_id, sequence, log_time, publish_time)
+        chunk += data
+        if len(chunk) > self._chunk_size:
+            self._finalize()
+
+    def group(self, parts: Sequence[tuple[int, bytes, int]]) -> MessageGroup:
+        """A :class:`MessageGroup` of (channel id, payload prefix, float64 count) parts."""
+        return MessageGroup(self, parts)
+
+    @property
+    def message_count(self) -> int:
+        return sum(self.counts)
+
+    @property
+    def first_time(self) -> int | None:
+        """The earliest log time written (None before the first message)."""
+        times = [start for start, _ in self._bounds]
+        times += (min(entries[::2]) for entries in self._index.values())
+        return min(times, default=None)
+
+    @property
+    def last_time(self) -> int:
+        """The latest log time written (0 before the first message)."""
+        times = [end for _, end in self._bounds]
+        times += (max(entries[::2]) for entries in self._index.values())
+        return max(times, default=0)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        self.drain()  # after the chunks before it, as the library writes it
+        offset = self._out.tell()
+        record = _record_bytes(Metadata(name=name, metadata=data))
+        self._metadata_indexes.append(MetadataIndex(offset=offset, length=len(record), name=name))
+        self._out.write(record)
+
+    def finish(self) -> None:
+        """The chunk in progress, then the summary (schemas, channels, statistics, chunk and
+        metadata indexes, summary offsets) and the footer."""
+        self._finalize()
+        self.drain()
+        self._records(DataEnd(0))
+        start = self._out.tell()
+        summary = RecordBuilder()
+        offsets = []
+        chunks = self._chunk_indexes
+        statistics = Statistics(
+            attachment_count=0,
+            channel_count=len(self._channels),
+            channel_message_counts={ch: self.counts[ch] for ch in self._first_seen},
+            chunk_count=len(chunks),
+            message_count=sum(self.counts),
+            message_end_time=max((c.message_end_time for c in chunks), default=0),
+            message_start_time=min((c.message_start_time for c in chunks), default=0),
+            metadata_count=len(self._metadata_indexes),
+            schema_count=len(self._schemas),
+        )
+        groups: list[tuple[Opcode, list[Any]]] = [
+            (Opcode.SCHEMA, list(self._schemas)),
+            (Opcode.CHANNEL, list(self._channels)),
+            (Opcode.STATISTICS, [statistics]),
+            (Opcode.CHUNK_INDEX, self._chunk_indexes),
+            (Opcode.ATTACHMENT_INDEX, []),
+            (Opcode.METADATA_INDEX, self._metadata_indexes),
+        ]
+        for opcode, records in groups:
+            group_start = summary.count
+            for r in records:
+                r.write(summary)
+            offsets.append(SummaryOffset(opcode, start + group_start, summary.count - group_start))
+        offset_start = start + summary.count
+        for o in offsets:
+            o.write(summary)
+        data = summary.end()
+        crc = zlib.crc32(data)
+        crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, start, offset_start), crc)
+        self._out.write(data)
+        self._records(
+            Footer(summary_start=start, summary_offset_start=offset_start, summary_crc=crc)
+        )
+        self._out.write(MAGIC)
+
+    def _maybe_finalize(self) -> None:
+        if len(self._chunk) > self._chunk_size:
+            self._finalize()
+
+    def _finalize(self) -> None:
+        """Seal the open chunk (if it holds a message): compressed here, or by the compressing
+        thread while the next chunk fills; a sealed chunk is written when it is compressed and
+        the one after it is sealed (or at :meth:`drain`), so one chunk waits at most."""
+        if not self._index:
+            return
+        times = [t for entries in self._index.values() for t in entries[::2]]
+        for channel_id in self._index:
+            self._first_seen.setdefault(channel_id, None)
+        raw = bytes(self._chunk)
+        sealed = (raw, self._index, min(times), max(times))
+        self._bounds.append(sealed[2:])
+        self._chunk = bytearray()
+        self._index = {}
+        if self._pool is None:
+            self._write_chunk(_compress(self._zstd, raw), *sealed)
+            return
+        self.drain()
+        self._pending = (self._pool.submit(_compress, self._zstd, raw), sealed)
+
+    def drain(self) -> None:
+        """Write the sealed chunk still waiting (once it is compressed); an OSError of the file
+        is raised here."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            future, sealed = pending
+            self._write_chunk(future.result(), *sealed)
+
+    def close(self) -> None:
+        """End the compressing thread (after :meth:`finish`, or when giving up on the file)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+            _quick_switch(-1)
+
+    def _write_chunk(
+        self,
+        packed: tuple[bytes, int],
+        raw: bytes,
+        index: dict[int, list[int]],
+        start: int,
+        end: int,
+    ) -> None:
+        compressed, crc = packed
+        compression = b"zstd"
+        head = _CHUNK_RECORD.pack(
+            Opcode.CHUNK,
+            _CHUNK_HEAD.size + 4 + len(compression) + 8 + len(compressed),
+            start,
+            end,
+            len(raw),
+            crc,
+            len(compression),
+        )
+        chunk_offset = self._out.tell()
+        record_length = len(head) + len(compression) + 8 + len(compressed)
+        # each channel's message index record (mcap.records.MessageIndex) in one pack
+        parts = []
+        offsets = {}
+        at = chunk_offset + record_length
+        for channel_id, entries in index.items():
+            n = len(entries)
+            part = struct.pack(
+                f"<BQHI{n}Q", Opcode.MESSAGE_INDEX, 6 + 8 * n, channel_id, 8 * n, *entries
+            )
+            offsets[channel_id] = at
+            at += len(part)
+            parts.append(part)
+        index_bytes = b"".join(parts)
+        self._out.write(b"".join((head, compression, struct.pack("<Q", len(compressed)))))
+        self._out.write(compressed)
+        self._out.write(index_bytes)
+        self._chunk_indexes.append(
+            ChunkIndex(
+                message_start_time=start,
+                message_end_time=end,
+                chunk_start_offset=chunk_offset,
+                chunk_length=record_length,
+                message_index_offsets=offsets,
+                message_index_length=len(index_bytes),
+                compression="zstd",
+                compressed_size=len(compressed),
+                uncompressed_size=len(raw),
+            )
+        )
+
+    def _records(self, *records: Any) -> None:
+        self._out.write(b"".join(_record_bytes(r) for r in records))
+
+
+class MessageGroup:
+    """Messages that go out together, one after another, each on its own channel with a payload
+    of a constant prefix then float64 values (a per-step record): :meth:`add` packs the whole
+    group with one ``struct`` call. The bytes are those :meth:`ChunkWriter.add` of each message
+    in turn writes, chunk boundaries included."""
+
+    def __init__(self, writer: ChunkWriter, parts: Sequence[tuple[int, bytes, int]]) -> None:
+        self._w = writer
+        self._parts = [(ch, prefix, _MESSAGE_HEAD + len(prefix) + 8 * n) for ch, prefix, n in parts]
+        self._struct = struct.Struct(
+            "<" + "".join(f"BQHIQQ{len(prefix)}s{8 * n}s" for _, prefix, n in parts)
+        )
+        self._size = self._struct.size
+        self._lengths = tuple(size - 9 for _, _, size in self._parts)  #: each record's length
+
+    def add(self, times: Sequence[int], values: Sequence[bytes]) -> None:
+        """One message per part: its float64 ``values`` (packed little endian) at ``times[i]``
+        (log and publish time)."""
+        w = self._w
+        chunk = w._chunk
+        off = len(chunk)
+        if off + self._size > w._chunk_size:  # the chunk fills within the group: one by one
+            for (ch, prefix, _), t, v in zip(self._parts, times, values):
+                w.add(ch, t, prefix + v)
+            return
+        counts, index_of = w.counts, w._index
+        args: list[Any] = []
+        for (ch, prefix, size), t, v in zip(self._parts, times, values):
+            seq = counts[ch] = counts[ch] + 1
+            index = index_of.get(ch)
+            if index is None:
+                index = index_of[ch] = []
+            index += (t, off)
+            off += size
+            args += (5, size - 9, ch, seq, t, t, prefix, v)
+        chunk += self._struct.pack(*args)
+
+    def add3(self, t0: int, t1: int, t2: int, v0: bytes, v1: bytes, v2: bytes) -> None:
+        """:meth:`add` of a group of three, unrolled (a 20 kHz drive's state, reference and
+        command: this runs 20,000 times per simulated second)."""
+        w = self._w
+        chunk = w._chunk
+        off = len(chunk)
+        if off + self._size > w._chunk_size:
+            self.add((t0, t1, t2), (v0, v1, v2))
+            return
+        (c0, p0, n0), (c1, p1, n1), (c2, p2, _) = self._parts
+        counts, index_of = w.counts, w._index
+        s0 = counts[c0] = counts[c0] + 1
+        s1 = counts[c1] = counts[c1] + 1
+        s2 = counts[c2] = counts[c2] + 1
+        if c0 in index_of:
+            index_of[c0] += (t0, off)
+            index_of[c1] += (t1, off + n0)
+            index_of[c2] += (t2, off + n0 + n1)
+        else:  # the chunk's first group
+            for c, t, o in ((c0, t0, off), (c1, t1, off + n0), (c2, t2, off + n0 + n1)):
+                index_of.setdefault(c, []).extend((t, o))
+        l0, l1, l2 = self._lengths
+        chunk += self._struct.pack(
+            5,
+            l0,
+            c0,
+            s0,
+            t0,
+            t0,
+            p0,
+            v0,
+            5,
+            l1,
+            c1,
+            s1,
+            t1,
+            t1,
+            p1,
+            v1,
+            5,
+            l2,
+            c2,
+            s2,
+            t2,
+            t2,
+            p2,
+            v2,
+        )
+
+
+#: writers with a compressing thread, and the switch interval before the first of them
+_SWITCH: list[Any] = [0, None]
+#: s: how long the compressing thread may wait for the GIL at most while they write
+QUICK_SWITCH = 0.001
+
+
+def _quick_switch(change: int) -> None:
+    """While a writer with a compressing thread is open, Python hands the GIL over within
+    QUICK_SWITCH rather than its default 5 ms: the thread needs it briefly before and after each
+    chunk it compresses, and a simulation in pure Python never lets go of it on its own (at
+    5 ms the chunk would come back later than the next one fills)."""
+    if change > 0 and _SWITCH[0] == 0:
+        _SWITCH[1] = sys.getswitchinterval()
+        sys.setswitchinterval(min(QUICK_SWITCH, _SWITCH[1]))
+    _SWITCH[0] += change
+    if change < 0 and _SWITCH[0] == 0:
+        sys.setswitchinterval(_SWITCH[1])
+
+
+def _compress(zstd: Any, raw: bytes) -> tuple[bytes, int]:
+    """A chunk's compressed bytes and its CRC (neither holds the GIL while it works)."""
+    return zstd.compress(raw), zlib.crc32(raw)
+
+
+def _record_bytes(record: Any) -> bytes:
+    b = RecordBuilder()
+    record.write(b)
+    out: bytes = b.end()
+    return out
+
+
+# --- reading --------------------------------------------------------------------------------
+
+
+@dataclass
+class Messages:
+    """The messages of one channel, in file order: where each one's payload lies in
+    :attr:`McapContents.data`, its length, log and publish time and sequence number."""
+
+    channel: Channel
+    starts: list[int] = field(default_factory=list)
+    lengths: list[int] = field(default_factory=list)
+    log_times: list[int] = field(default_factory=list)
+    publish_times: list[int] = field(default_factory=list)
+    sequences: list[int] = field(default_factory=list)
+    #: position of each message in the whole file's message order
+    order: list[int] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def payloads(self, data: bytes | bytearray, length: int) -> np.ndarray:
+        """Every payload as a row of an (n, ``length``) uint8 array, in one numpy gather
+        (every message of the channel must be ``length`` bytes long)."""
+        buf = np.frombuffer(data, dtype=np.uint8)
+        windows = np.lib.stride_tricks.sliding_window_view(buf, length)  # no copy
+        rows: np.ndarray = windows[np.asarray(self.starts, dtype=np.int64)]
+        return rows
+
+
+@dataclass
+class McapContents:
+    """A file read by :func:`read_file`: its channels' messages (payloads in :attr:`data`), the
+    metadata records by name, and whether the file ended as a closed file does (data end,
+    summary, footer, magic)."""
+
+    data: bytearray
+    channels: dict[int, Messages]
+    metadata: dict[str, dict[str, str]]
+    complete: bool
+    messages: int = 0
+
+    def payload(self, m: Messages, i: int) -> bytes:
+        s = m.starts[i]
+        return bytes(self.data[s : s + m.lengths[i]])
+
+    def in_file_order(self) -> Iterator[tuple[Channel, int, int, int, bytes]]:
+        """(channel, log time, publish time, sequence, payload) of every message, file order."""
+        where = []
+        for m in self.channels.values():
+            for i, n in enumerate(m.order):
+                where.append((n, m, i))
+        where.sort(key=lambda w: w[0])
+        for _, m, i in where:
+            yield m.channel, m.log_times[i], m.publish_times[i], m.sequences[i], self.payload(m, i)
+
+
+def read_file(path: Any) -> McapContents:
+    """Every message of an MCAP file as :class:`McapContents`. The top-level records are read
+    in order; a chunk is decompressed whole. Reading stops quietly at a record cut short or
+    unreadable (a writer killed mid-write): what came before is the contents, ``complete``
+    False. Raises ``OSError`` if the file cannot be read, ``ValueError`` if it is not MCAP."""
+    with open(path, "rb") as f:
+        raw = f.read()
+    if raw[: len(MAGIC)] != MAGIC:
+        raise ValueError(f"{path}: not an MCAP file")
+    out = McapContents(bytearray(), {}, {}, False)
+    unzstd = zstandard.ZstdDecompressor()
+    pos, end = len(MAGIC), len(raw)
+    while pos + 9 <= end:
+        op, length = _RECORD.unpack_from(raw, pos)
+        body = pos + 9
+        if body + length > end:
+            break  # cut short
+        if op == Opcode.CHUNK:
+            try:
+                _chunk(out, raw, body, unzstd)
+            except (zstandard.ZstdError, ValueError, struct.error):
+                break  # a chunk cut or damaged: what came before stands
+        elif op == Opcode.METADATA:
+            md = Metadata.read(ReadDataStream(_view(raw, body, length)))
+            out.metadata[md.name] = dict(md.metadata)
+        elif op == Opcode.CHANNEL:
+            _add_channel(out, Channel.read(ReadDataStream(_view(raw, body, length))))
+        elif op == Opcode.MESSAGE:  # an unchunked file
+            _messages(out, memoryview(raw)[body - 9 : body + length], 0)
+        elif op == Opcode.FOOTER:
+            out.complete = raw[body + length : body + length + len(MAGIC)] == MAGIC
+            break
+        pos = body + length
+    return out
+
+
+def _view(raw: bytes, start: int, length: int) -> Any:
+    import io
+
+    return io.BytesIO(raw[start : start + length])
+
+
+def _add_channel(out: McapContents, channel: Channel) -> None:
+    if channel.id not in out.channels:
+        out.channels[channel.id] = Messages(channel)
+
+
+def _chunk(out: McapContents, raw: bytes, body: int, unzstd: Any) -> None:
+    _start, _end, size, crc = _CHUNK_HEAD.unpack_from(raw, body)
+    pos = body + _CHUNK_HEAD.size
+    (n,) = struct.unpack_from("<I", raw, pos)
+    compression = raw[pos + 4 : pos + 4 + n].decode()
+    pos += 4 + n
+    (clen,) = struct.unpack_from("<Q", raw, pos)
+    pos += 8
+    blob = raw[pos : pos + clen]
+    if compression == "zstd":
+        data = unzstd.decompress(blob, max_output_size=size)
+    elif compression == "":
+        data = blob
+    else:
+        raise ValueError(f"compression {compression!r} is not read here")
+    if len(data) != size or (crc and zlib.crc32(data) != crc):
+        raise ValueError("chunk damaged")
+    _messages(out, data, len(out.data))
+    out.data += data
+
+
+def _messages(out: McapContents, data: Any, base: int) -> None:
+    """The records of a chunk's (or an unchunked file's) bytes: channels and messages."""
+    pos, end = 0, len(data)
+    unpack, fields = _RECORD.unpack_from, _MESSAGE_FIELDS.unpack_from
+    channels = out.channels
+    n = out.messages
+    while pos + 9 <= end:
+        op, length = unpack(data, pos)
+        if op == 5:
+            ch, seq, log, pub = fields(data, pos + 9)
+            m = channels[ch]
+            m.starts.append(base + pos + _MESSAGE_HEAD)
+            m.lengths.append(length - 22)
+            m.log_times.append(log)
+            m.publish_times.append(pub)
+            m.sequences.append(seq)
+            m.order.append(n)
+            n += 1
+        elif op == Opcode.CHANNEL:
+            _add_channel(out, Channel.read(ReadDataStream(_view(bytes(data), pos + 9, length))))
+        pos += 9 + length
+    out.messages = n
