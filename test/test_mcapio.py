@@ -81,12 +81,14 @@ def test_a_group_writes_what_its_messages_one_by_one_write():
         w = ChunkWriter(out, chunk_size=8 * 1024)
         w.start(profile="ros2", library="test")
         ids = [w.register_channel(f"/c{i}", "cdr", 0, {}) for i in range(4)]
-        group = w.group([(ids[i], prefixes[i], widths[i]) for i in range(3)])
+        group = w.group([(ids[i], prefixes[i], 8 * widths[i]) for i in range(3)])
         for k in range(700):
             values = [rng.standard_normal(n).astype("<f8").tobytes() for n in widths]
             t = k * 50_000
             if k % 20 == 0:  # something else between the groups now and then
                 w.add(ids[3], t, b"tool")
+            if k % 37 == 0:  # a state on its own (a chunk may begin with it)
+                w.add(ids[0], t, prefixes[0] + bytes(8 * widths[0]))
             if grouped:
                 group.add3(t, t, t + 1, *values)
             else:

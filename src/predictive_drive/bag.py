@@ -13,10 +13,11 @@ several times faster); the library reads it back where speed does not matter (re
 
 from __future__ import annotations
 
+import bisect
 import fcntl
 import functools
-import heapq
 import json
+import math
 import os
 import shutil
 import time
@@ -232,7 +233,7 @@ class BagWriter:
         self._writer = ChunkWriter(self._file, chunk_size=CHUNK_SIZE, background=True)
         self._writer.start(profile="ros2", library=f"predictive_drive {__version__}")
         self._channels: dict[str, int] = {}
-        self._held: list[tuple[int, int, str, bytes]] = []  #: heap of (log time, arrival, ...)
+        self._held: list[tuple[int, int, str, bytes]] = []  #: (log time, arrival, key, data)
         self._arrivals = 0
         self._closed = False
         self._failed = ""
@@ -270,7 +271,7 @@ class BagWriter:
 
     def group(self, parts: Sequence[tuple[str, bytes, int]]) -> MessageGroup:
         """Messages written together (:class:`~.mcapio.MessageGroup`): (topic key, payload
-        prefix, float64 count) each. Its ``add`` raises OSError: pass it to
+        prefix, bytes after it) each. Its ``add`` raises OSError: pass it to
         :meth:`write_failed`."""
         return self._writer.group([(self._channels[key], p, n) for key, p, n in parts])
 
@@ -286,15 +287,26 @@ class BagWriter:
         """One message to be written in log-time order once :meth:`release` passes its time
         (messages of equal time keep their arrival order); :meth:`close` writes what is held."""
         self._arrivals += 1
-        heapq.heappush(self._held, (t_ns, self._arrivals, topic_key, data))
+        self._held.append((t_ns, self._arrivals, topic_key, data))
 
     def release(self, through_ns: int) -> None:
-        """Write the held messages logged at or before ``through_ns``: the caller knows that no
-        message of an earlier time is still to come."""
+        """Write the held messages logged at or before ``through_ns``, in (log time, arrival)
+        order: the caller knows that no message of an earlier time is still to come."""
+        write = self.write
+        for t_ns, _, key, data in self.ready(through_ns):
+            write(key, t_ns, data)
+
+    def ready(self, through_ns: int) -> list[tuple[int, int, str, bytes]]:
+        """Take the held messages logged at or before ``through_ns`` out, in (log time,
+        arrival) order, as (time, arrival, topic key, data): the caller writes them, in that
+        order (what :meth:`release` does)."""
         held = self._held
-        while held and held[0][0] <= through_ns:
-            t_ns, _, key, data = heapq.heappop(held)
-            self.write(key, t_ns, data)
+        if not held:
+            return []
+        held.sort()  # (time, arrival) is unique: the rest of the tuple is never compared
+        n = bisect.bisect_right(held, (through_ns, math.inf))
+        ready, self._held = held[:n], held[n:]
+        return ready
 
     @property
     def last_ns(self) -> int:

@@ -194,6 +194,9 @@ class MultiArrayCodec:
         self.prefix = w.bytes()
         self._fmt = struct.Struct(f"<{len(fields)}d")
         self.size = len(self.prefix) + self._fmt.size
+        #: the last message decoded and its values: composed, every local subscriber of a topic
+        #: is handed the same bytes object, and decodes it once
+        self._last: tuple[bytes, tuple[float, ...]] = (b"", ())
 
     def encode(self, values: tuple[float, ...]) -> bytes:
         return self.prefix + self._fmt.pack(*values)
@@ -202,8 +205,12 @@ class MultiArrayCodec:
         """Values of a message in this layout's field order. A message of exactly this layout
         takes the fast path; another labelled layout (a recording of another version) is read
         by field name, NaN for fields it lacks; BagError if it lacks the step or time."""
+        last = self._last
+        if data is last[0]:
+            return last[1]
         if len(data) == self.size and data.startswith(self.prefix):
             values: tuple[float, ...] = self._fmt.unpack_from(data, len(self.prefix))
+            self._last = (data, values)
             return values
         labels, values = decode_multiarray(data)
         by_name = dict(zip(labels, values))

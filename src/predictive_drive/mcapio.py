@@ -142,7 +142,7 @@ class ChunkWriter:
             self._finalize()
 
     def group(self, parts: Sequence[tuple[int, bytes, int]]) -> MessageGroup:
-        """A :class:`MessageGroup` of (channel id, payload prefix, float64 count) parts."""
+        """A :class:`MessageGroup` of (channel id, payload prefix, bytes after it) parts."""
         return MessageGroup(self, parts)
 
     @property
@@ -312,21 +312,21 @@ class ChunkWriter:
 
 class MessageGroup:
     """Messages that go out together, one after another, each on its own channel with a payload
-    of a constant prefix then float64 values (a per-step record): :meth:`add` packs the whole
-    group with one ``struct`` call. The bytes are those :meth:`ChunkWriter.add` of each message
-    in turn writes, chunk boundaries included."""
+    of a constant prefix (may be empty) then a fixed number of bytes (a per-step record):
+    :meth:`add` packs the whole group with one ``struct`` call. The bytes are those
+    :meth:`ChunkWriter.add` of each message in turn writes, chunk boundaries included."""
 
     def __init__(self, writer: ChunkWriter, parts: Sequence[tuple[int, bytes, int]]) -> None:
         self._w = writer
-        self._parts = [(ch, prefix, _MESSAGE_HEAD + len(prefix) + 8 * n) for ch, prefix, n in parts]
+        self._parts = [(ch, prefix, _MESSAGE_HEAD + len(prefix) + n) for ch, prefix, n in parts]
         self._struct = struct.Struct(
-            "<" + "".join(f"BQHIQQ{len(prefix)}s{8 * n}s" for _, prefix, n in parts)
+            "<" + "".join(f"BQHIQQ{len(prefix)}s{n}s" for _, prefix, n in parts)
         )
         self._size = self._struct.size
         self._lengths = tuple(size - 9 for _, _, size in self._parts)  #: each record's length
 
     def add(self, times: Sequence[int], values: Sequence[bytes]) -> None:
-        """One message per part: its float64 ``values`` (packed little endian) at ``times[i]``
+        """One message per part: its ``values`` (the payload after the prefix) at ``times[i]``
         (log and publish time)."""
         w = self._w
         chunk = w._chunk
@@ -361,11 +361,11 @@ class MessageGroup:
         s0 = counts[c0] = counts[c0] + 1
         s1 = counts[c1] = counts[c1] + 1
         s2 = counts[c2] = counts[c2] + 1
-        if c0 in index_of:
+        if c0 in index_of and c1 in index_of and c2 in index_of:
             index_of[c0] += (t0, off)
             index_of[c1] += (t1, off + n0)
             index_of[c2] += (t2, off + n0 + n1)
-        else:  # the chunk's first group
+        else:  # the first of a channel's messages in this chunk
             for c, t, o in ((c0, t0, off), (c1, t1, off + n0), (c2, t2, off + n0 + n1)):
                 index_of.setdefault(c, []).extend((t, o))
         l0, l1, l2 = self._lengths

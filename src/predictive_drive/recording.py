@@ -223,7 +223,7 @@ class RunRecorder:
         self._group = (
             writer.group(
                 [
-                    (RECORD_TOPICS[r], CODECS[RECORD_TOPICS[r]].prefix, len(RECORDS[r]))
+                    (RECORD_TOPICS[r], CODECS[RECORD_TOPICS[r]].prefix, 8 * len(RECORDS[r]))
                     for r in ("state", "reference", "command")
                 ]
             )
@@ -231,6 +231,16 @@ class RunRecorder:
             else None
         )
         self._batch: list[Step] = []  #: steps taken, not yet written
+        #: node path: a step's three records as received, written as one group (see flush)
+        self._sizes = tuple(
+            CODECS[RECORD_TOPICS[r]].size for r in ("state", "reference", "command")
+        )
+        self._raw_group = writer.group(
+            [
+                (RECORD_TOPICS[r], b"", size)
+                for r, size in zip(("state", "reference", "command"), self._sizes)
+            ]
+        )
         self._prefix_state = CODECS[RECORD_TOPICS["state"]].prefix
         self._prefix_reference = CODECS[RECORD_TOPICS["reference"]].prefix
         self._prefix_command = CODECS[RECORD_TOPICS["command"]].prefix
@@ -391,8 +401,34 @@ class RunRecorder:
         self._seen[topic] = ns
         through = min(self._seen.values())
         if through > self._released:
-            self._released = through
-            self.writer.release(through)
+            self._released = through  # written at the next flush()
+
+    def flush(self) -> None:
+        """Node path: write what every topic has passed (the node calls this after each batch of
+        messages it takes; what comes later cannot be earlier), a step's state, reference and
+        command in one pack where they follow one another."""
+        ready = self.writer.ready(self._released)
+        write = self.writer.write
+        add3 = self._raw_group.add3
+        sizes = self._sizes
+        i, n = 0, len(ready)
+        try:
+            while i < n:
+                t, _, key, data = ready[i]
+                if key == "state" and i + 2 < n:
+                    r, c = ready[i + 1], ready[i + 2]
+                    if (
+                        r[2] == "reference"
+                        and c[2] == "command"
+                        and (len(data), len(r[3]), len(c[3])) == sizes
+                    ):
+                        add3(t, r[0], c[0], data, r[3], c[3])
+                        i += 3
+                        continue
+                write(key, t, data)
+                i += 1
+        except OSError as e:
+            raise self.writer.write_failed(e) from None
 
     def _span(self, k: int, index: float) -> None:
         """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process

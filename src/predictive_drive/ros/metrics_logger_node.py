@@ -24,7 +24,11 @@ from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import FINISH_TIMEOUT, WatchedNode, run_main
 from .placement import launcher_pid
 
-__all__ = ["MetricsLoggerNode", "main"]
+__all__ = ["TAKE_BATCH", "MetricsLoggerNode", "main"]
+
+#: messages the logger takes before it writes them (about 30 steps of the drive, well inside the
+#: plant's RECORDING_WINDOW); a watchdog turn (0.1 s at most) writes what is waiting
+TAKE_BATCH = 96
 
 
 @dataclass(frozen=True)
@@ -98,7 +102,9 @@ class MetricsLoggerNode(WatchedNode):
             live=None if self.live is None else self.live.offer,
         )
         ticks = self.n // tool_every(run.ts) + 1
+        #: messages taken, by topic; written (and counted in the bag) in batches
         self._counts = {"state": 0, "reference": 0, "command": 0, "clock": 0, "joint_states": 0}
+        self._taken: list[tuple[Callable[[str, bytes], None], str, bytes]] = []
         self._need = {
             "state": self.n + 1,
             "reference": self.n + 1,
@@ -163,14 +169,29 @@ class MetricsLoggerNode(WatchedNode):
 
     def on_record(self, rec: str, data: bytes) -> None:
         self.progressed()
+        self._take(self._record, rec, data)
+
+    def _take(self, write: Callable[[str, bytes], None], key: str, data: bytes) -> None:
+        """A message to record: taken now, written with the ones before it once
+        :data:`TAKE_BATCH` have come (the recorder's work then runs in a tight loop), or at the
+        next watchdog turn, or when the last one has come."""
         self._last_message = time.monotonic()
+        self._counts[key] += 1
+        self._taken.append((write, key, data))
+        if len(self._taken) >= TAKE_BATCH or self._counts == self._need:
+            self._write_taken()
+
+    def _write_taken(self) -> None:
+        """Write what was taken, in the order it came; announce on /drive/recorded how far the
+        recording goes; close the bag when every message has come."""
+        taken, self._taken = self._taken, []
         try:
-            row = self.rec.record_raw(rec, data)
+            for write, key, data in taken:
+                write(key, data)
+            self.rec.flush()
         except BagError as e:
             self._cannot_write(e)
             return
-        self._counts[rec] += 1
-        self._last[rec] = int(row[0])
         through = min(self._last.values())
         if not self._draining and (through >= self._said + RECORDED_EVERY or through >= self.n - 1):
             self._said = through
@@ -179,6 +200,14 @@ class MetricsLoggerNode(WatchedNode):
             self.pub_recorded.publish(CODECS["recorded"].encode(progress))
         self._maybe_done()
 
+    def _record(self, rec: str, data: bytes) -> None:
+        self._last[rec] = int(self.rec.record_raw(rec, data)[0])
+
+    def check(self) -> None:
+        if self._taken:
+            self._write_taken()
+        super().check()
+
     def finish(self, spin: Callable[[float], None], deadline: float) -> None:
         """Take what is still in flight before the bag closes: until every step has come, or
         nothing has for a second. /drive/recorded is not announced any more, so the plant stops
@@ -186,6 +215,7 @@ class MetricsLoggerNode(WatchedNode):
         (the peers keep their publishers until it is acknowledged). Bounded by FINISH_TIMEOUT
         whatever stopped the run: the recording is what a stop must not cut short."""
         self._draining = True
+        self._write_taken()
         start = time.monotonic()
         until = max(deadline, start + FINISH_TIMEOUT)
         while (
@@ -194,25 +224,19 @@ class MetricsLoggerNode(WatchedNode):
             and time.monotonic() - max(start, self._last_message) < 1.0
         ):
             spin(0.05)
+            self._write_taken()
 
     @property
     def last_step(self) -> int:
         return min(self._last.values())
 
     def _maybe_done(self) -> None:
-        if self._counts == self._need:
+        if self._counts == self._need and not self._taken:
             self.close()
             self.finished = True
 
     def on_tool(self, key: str, data: bytes) -> None:
-        self._last_message = time.monotonic()
-        try:
-            self.rec.record_tool(key, data)
-        except BagError as e:
-            self._cannot_write(e)
-            return
-        self._counts[key] += 1
-        self._maybe_done()
+        self._take(self.rec.record_tool, key, data)
 
     def on_parameter_event(self, data: bytes) -> None:
         """Parameter changes the drive's nodes accept while the drive runs (from its first state
@@ -226,10 +250,8 @@ class MetricsLoggerNode(WatchedNode):
         if self._counts["state"] == 0 or self._closed:
             return
         if event.node in self._drive_nodes and event.changed:
-            try:
-                self.rec.record_event(data)
-            except BagError as e:
-                self._cannot_write(e)
+            # in its place among the messages taken (its log time is the last step's before it)
+            self._taken.append((lambda _key, d: self.rec.record_event(d), "", data))
 
     def _cannot_write(self, e: BagError) -> None:
         if not self.failure:
@@ -245,6 +267,10 @@ class MetricsLoggerNode(WatchedNode):
     def close(self) -> None:
         if self._closed:
             return
+        if self._taken and not self.writer.failed:
+            self._write_taken()  # closes the bag itself when that was the last message
+            if self._closed:
+                return
         self._closed = True
         if self.live is not None:
             self.live.close()

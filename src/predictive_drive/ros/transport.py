@@ -148,18 +148,31 @@ class LocalBus:
 
 
 class Outlet:
-    """A publisher that also serves the local subscribers of its topic (see :class:`LocalBus`)."""
+    """A publisher that also serves the local subscribers of its topic (see :class:`LocalBus`).
 
-    def __init__(self, pub: Any, bus: LocalBus) -> None:
+    ``recheck``: how many messages go out between two looks at the topic's outside (DDS)
+    subscribers (asking rmw costs more than the rest of a publish): 1 for a topic the graph's
+    own tools must never miss a message of (/clock: the launcher's switches follow it); for a
+    per-step topic, an outside subscriber that comes in the middle of a run (a tool, a second
+    recorder) may miss the messages of up to ``recheck`` steps before its first."""
+
+    def __init__(self, pub: Any, bus: LocalBus, recheck: int = 1) -> None:
         self.pub = pub
         self.topic_name = pub.topic_name
         self._local = bus.subscribers.setdefault(pub.topic_name, [])
         self._queue = bus.queue
+        self._recheck = recheck
+        self._until_look = 0
+        self._outside = 0
 
     def publish(self, data: bytes) -> None:
         for callback in self._local:
             self._queue.append((callback, data))
-        if self.pub.get_subscription_count():  # only outside subscribers are DDS ones
+        self._until_look -= 1
+        if self._until_look <= 0:
+            self._outside = self.pub.get_subscription_count()
+            self._until_look = self._recheck
+        if self._outside:  # only outside subscribers are DDS ones
             self.pub.publish(data)
 
     def get_subscription_count(self) -> int:
