@@ -251,3 +251,28 @@ def test_a_bag_of_another_layout_is_read_message_by_message(tmp_path):
     assert np.isnan(b.state[:, i]).all()
     keep = [j for j in range(len(codec.fields)) if j != i]
     np.testing.assert_array_equal(a.state[:, keep], b.state[:, keep])
+
+
+def test_the_writing_thread_and_the_switch_interval_end_with_the_bag(tmp_path, monkeypatch):
+    """A bag closed, or one that could not even start (a full disk at its metadata.yaml),
+    leaves no compressing thread behind and Python's switch interval as it was."""
+    import sys
+    import threading
+
+    from predictive_drive.bag import BagWriter
+    from predictive_drive.errors import BagError
+
+    before = sys.getswitchinterval()
+    with BagWriter(tmp_path / "a", info={}) as w:
+        assert sys.getswitchinterval() == min(before, 0.001)
+        w.write("state", 0, b"x")
+    assert sys.getswitchinterval() == before
+
+    def full(self):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(BagWriter, "_write_metadata_yaml", full)
+    with pytest.raises(BagError, match="cannot write the bag .*No space left on device"):
+        BagWriter(tmp_path / "b", info={})
+    assert sys.getswitchinterval() == before
+    assert not [t for t in threading.enumerate() if t.name.startswith("mcap-chunks")]

@@ -231,6 +231,20 @@ class BagWriter:
         except OSError as e:
             raise BagError(f"cannot write the bag {self.directory}: {e.strerror}") from None
         self._writer = ChunkWriter(self._file, chunk_size=CHUNK_SIZE, background=True)
+        try:
+            self._start(info, stamp)
+        except BaseException as e:
+            self._writer.close()  # its thread, and Python's switch interval
+            self._file.close()
+            if isinstance(e, OSError):
+                raise BagError(
+                    f"cannot write the bag {self.directory}: {e.strerror or e}"
+                ) from None
+            raise
+
+    def _start(self, info: dict[str, Any], stamp: bool) -> None:
+        """The header, schemas, channels, this package's metadata and a provisional
+        metadata.yaml."""
         self._writer.start(profile="ros2", library=f"predictive_drive {__version__}")
         self._channels: dict[str, int] = {}
         self._held: list[tuple[int, int, str, bytes]] = []  #: (log time, arrival, key, data)
