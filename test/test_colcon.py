@@ -99,7 +99,8 @@ def test_the_installed_nodes_run_as_ros2_run_starts_them(install, tmp_path):
                 if p.poll() is None:
                     p.kill()
                     p.wait(timeout=10)
-    assert all(p.returncode == 0 for p in procs), outs
+    codes = [p.returncode for p in procs]
+    assert codes == [0] * len(procs), list(zip(NODES, codes, outs))
     (bag,) = (work / "bags").iterdir()
     tr, info = read_bag(bag)
     assert info.complete and info.info["engine"] == "ros"
