@@ -70,15 +70,14 @@ def test_every_link_and_anchor_resolves(page):
 
 
 def test_code_and_tests_cite_docs_that_exist():
-    """Every `docs/x.md#anchor` cited in src/ and test/ resolves; nothing cites the steering
+    """Every docs/ file and #anchor cited in src/ and test/ resolves; nothing cites the steering
     documents outside the repository."""
     bad = []
     files = [*ROOT.glob("src/**/*.py"), *ROOT.glob("src/**/*.json"), *ROOT.glob("test/*.py")]
     for f in files:
-        if f.name == "test_docs.py":
-            continue  # this checker names the patterns it looks for
         text = f.read_text()
-        if re.search(r"SPEC §|shared/(SPEC|ARCHITECTURE|STYLE)", text):
+        # the outside design documents (the bracketed letters keep this line from citing them)
+        if re.search(r"[S]PEC §|[s]hared/([S]PEC|[A]RCHITECTURE|[S]TYLE)", text):
             bad.append(f"{f.name}: cites a document outside the repository")
         for doc, frag in re.findall(r"docs/([a-z_]+\.md)(?:#([a-z0-9\-]+))?", text):
             dest = ROOT / "docs" / doc
