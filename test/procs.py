@@ -7,7 +7,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -35,6 +35,30 @@ def descendants(pid: int) -> list[int]:
         out += kids
         todo += kids
     return out
+
+
+def wait_until(
+    condition: Callable[[], object],
+    what: str,
+    *,
+    timeout: float = 120.0,
+    proc: subprocess.Popen | None = None,
+    every: float = 0.05,
+) -> None:
+    """Wait until ``condition()`` holds; fail saying ``what`` did not happen when ``timeout`` s
+    pass, or with ``proc``'s output when it has ended meanwhile."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if proc is not None:
+            assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, f"{what} (waited {timeout} s)"
+        time.sleep(every)
+
+
+def bag_bytes(bag: Path) -> int:
+    """How many bytes the bag's .mcap file holds so far (0 before it exists)."""
+    files = list(Path(bag).glob("*.mcap"))
+    return files[0].stat().st_size if files else 0
 
 
 def signal_tree(pid: int, sig: int) -> None:
@@ -77,10 +101,7 @@ def dask_cluster(tmp: Path, workers: int = 2) -> Iterator[str]:
             procs.append(subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port",
                                            "0", "--dashboard-address", ":0", "--scheduler-file",
                                            str(info)], **start))  # fmt: skip
-            deadline = time.monotonic() + 60
-            while not info.exists():
-                assert time.monotonic() < deadline, (tmp / "cluster.log").read_text()
-                time.sleep(0.2)
+            wait_until(info.exists, "the Dask scheduler did not start", timeout=60)
             for _ in range(workers):
                 procs.append(subprocess.Popen([dask, "worker", "--scheduler-file", str(info),
                                                "--nworkers", "1", "--nthreads", "1",

@@ -28,7 +28,7 @@ from predictive_drive.ros.placement import (
     FASTDDS_PROFILES_ENV,
     cpu_plan,
 )
-from procs import descendants, signal_tree
+from procs import bag_bytes, descendants, signal_tree, wait_until
 
 pytestmark = pytest.mark.process
 
@@ -240,14 +240,7 @@ def assert_placed(nodes: dict[str, int]) -> None:
 def wait_recorded(bag: Path, chunks: int = 1, p: subprocess.Popen | None = None) -> None:
     """Wait (up to 120 s) until the bag's file holds ``chunks`` written chunks (~500 steps
     each): the drive has run that far, whatever the machine's speed."""
-    deadline = time.monotonic() + 120
-    while True:
-        files = list(bag.glob("*.mcap"))
-        if files and files[0].stat().st_size > 260_000 * chunks:
-            return
-        assert p is None or p.poll() is None, p.communicate()
-        assert time.monotonic() < deadline, "the run did not get that far"
-        time.sleep(0.05)
+    wait_until(lambda: bag_bytes(bag) > 260_000 * chunks, "the run did not get that far", proc=p)
 
 
 def started_recording(
@@ -263,10 +256,10 @@ def started_recording(
 def wait_logged(bag: Path, node: str, text: str) -> None:
     """Wait (up to 120 s) until ``node``'s log says ``text``."""
     log = bag / "logs" / f"{node}.log"
-    deadline = time.monotonic() + 120
-    while not (log.exists() and text in log.read_text(errors="replace")):
-        assert time.monotonic() < deadline, f"{node} never said {text!r}"
-        time.sleep(0.05)
+    wait_until(
+        lambda: log.exists() and text in log.read_text(errors="replace"),
+        f"{node} never said {text!r}",
+    )
 
 
 def read_until(p: subprocess.Popen, text: str, stream: str = "stderr") -> str:
@@ -312,10 +305,11 @@ def test_nodes_of_a_launcher_killed_outright_end_themselves(cli_run, tmp_path):
     p, nodes = started_recording(cli_run, bag)
     os.kill(p.pid, signal.SIGKILL)
     p.wait(timeout=10)
-    deadline = time.monotonic() + 30
-    while not all(ended(pid) for pid in nodes.values()):
-        assert time.monotonic() < deadline, "orphaned node processes did not end"
-        time.sleep(0.1)
+    wait_until(
+        lambda: all(ended(pid) for pid in nodes.values()),
+        "orphaned node processes did not end",
+        timeout=30,
+    )
     tr, info = read_bag(bag)
     assert info.complete and tr.steps > 0
 
@@ -546,12 +540,9 @@ def test_nodes_stopped_as_ros2_launch_stops_them_end_cleanly(tmp_path):
                     env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                     text=True, start_new_session=True,
                 )  # fmt: skip
-            deadline = time.monotonic() + 60
-            while not list(tmp_path.glob("b/*.mcap")) or (
-                os.path.getsize(next(tmp_path.glob("b/*.mcap"))) < 300_000
-            ):
-                assert time.monotonic() < deadline, "the run did not start"
-                time.sleep(0.2)
+            wait_until(
+                lambda: bag_bytes(tmp_path / "b") >= 300_000, "the run did not start", timeout=60
+            )
             for p in procs.values():
                 os.kill(p.pid, signal.SIGINT)
             outs = {n: p.communicate(timeout=60)[0] for n, p in procs.items()}
@@ -671,10 +662,9 @@ def test_a_repeated_ctrl_c_says_what_is_true_when_the_command_exits(cli_run, tmp
         r"metrics_logger \(pid \d+\) is still closing the bag .* \((\d+) steps so far", err
     )
     assert said and "it is complete when that process ends" in err, err
-    deadline = time.monotonic() + 90
-    while not all(ended(pid) for pid in nodes.values()):  # they end on their own
-        assert time.monotonic() < deadline
-        time.sleep(0.1)
+    wait_until(  # they end on their own
+        lambda: all(ended(pid) for pid in nodes.values()), "the nodes did not end", timeout=90
+    )
     tr, info = read_bag(bag)
     assert info.complete and tr.steps >= int(said[1])
 

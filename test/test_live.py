@@ -21,7 +21,7 @@ from predictive_drive.readback import read_bag
 
 pytest.importorskip("foxglove")
 from foxglove_client import FoxgloveClient  # noqa: E402
-from procs import signal_tree  # noqa: E402
+from procs import signal_tree, wait_until  # noqa: E402
 
 STRATEGY = "/drive/torque_controller.strategy"
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
@@ -78,10 +78,12 @@ def test_the_view_serves_decimated_topics_time_and_the_strategy():
             "Capability" not in str(got.server_info) and "time" in got.server_info["capabilities"]
         )
         client.subscribe(["/drive/state", "/clock"])
-        deadline = time.monotonic() + 10
-        while not all(view._channels[c].has_sinks() for c in ("state", "clock")):
-            assert time.monotonic() < deadline, "the subscription never reached the server"
-            time.sleep(0.01)
+        wait_until(
+            lambda: all(view._channels[c].has_sinks() for c in ("state", "clock")),
+            "the subscription never reached the server",
+            timeout=10,
+            every=0.01,
+        )
         fields = TOPICS["state"].fields
         for k in range(100):
             t = k * 50e-6

@@ -20,6 +20,7 @@ from predictive_drive.bag import iter_messages
 from predictive_drive.codec import CODECS
 from predictive_drive.config import load_scenario
 from predictive_drive.interface import TOPICS
+from procs import bag_bytes, wait_until
 
 pytestmark = pytest.mark.process
 
@@ -101,10 +102,7 @@ def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recordi
             start_new_session=True,
         )
         try:
-            deadline = time.monotonic() + 60
-            while not listener.matched():
-                assert time.monotonic() < deadline, "the player's publishers never matched"
-                time.sleep(0.05)
+            wait_until(listener.matched, "the player's publishers never matched", timeout=60)
             go = subprocess.run(
                 [*CLI, "param", "set", "player", "paused", "false"],
                 env=env,
@@ -223,11 +221,13 @@ def _play(domain: int, bag, *args: str, listener, ready, until=None, then=_inter
         for condition in (ready, until):
             if condition is None:
                 continue
-            deadline = time.monotonic() + 60
-            while not condition(listener):
-                assert p.poll() is None, p.communicate()
-                assert time.monotonic() < deadline, "the replay never got that far"
-                time.sleep(0.02)
+            wait_until(
+                lambda c=condition: c(listener),
+                "the replay never got that far",
+                timeout=60,
+                proc=p,
+                every=0.02,
+            )
             if condition is ready:
                 go = subprocess.run([*CLI, "param", "set", "player", "paused", "false"],
                                     env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
@@ -276,10 +276,12 @@ def test_start_paused_sends_nothing_until_unpaused_and_topics_keep_the_rest_out(
                               "/drive/command", "--json"], env=env, stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, start_new_session=True)  # fmt: skip
         try:
-            deadline = time.monotonic() + 60
-            while listener.subs[1].get_publisher_count() == 0:
-                assert time.monotonic() < deadline
-                time.sleep(0.02)
+            wait_until(
+                lambda: listener.subs[1].get_publisher_count() > 0,
+                "the player's publisher never matched",
+                timeout=60,
+                every=0.02,
+            )
             time.sleep(0.5)  # paused: nothing may come in this half second
             assert all(v == [] for v in listener.got.values())
             go = subprocess.run([*CLI, "param", "set", "player", "paused", "false"], env=env,
@@ -312,10 +314,7 @@ def test_the_player_offers_each_topic_with_its_recorded_qos(recording):
                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                              start_new_session=True)  # fmt: skip
         try:
-            deadline = time.monotonic() + 60
-            while not listener.matched():
-                assert time.monotonic() < deadline
-                time.sleep(0.02)
+            wait_until(listener.matched, "the player's publishers never matched", timeout=60)
             offered = {}
             for name in PLAYED:
                 (info,) = listener.node.get_publishers_info_by_topic(name)
@@ -421,10 +420,7 @@ def test_an_interrupted_replay_into_keeps_a_readable_bag_and_refuses_to_overwrit
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          start_new_session=True)  # fmt: skip
     try:
-        deadline = time.monotonic() + 120
-        while not list(out.glob("*.mcap")) or next(out.glob("*.mcap")).stat().st_size < 270_000:
-            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
-            time.sleep(0.05)
+        wait_until(lambda: bag_bytes(out) >= 270_000, "the replay did not get that far", proc=p)
         p.send_signal(signal.SIGINT)
         _, err = p.communicate(timeout=60)
     finally:

@@ -21,7 +21,7 @@ from predictive_drive.api.sweep import MEASURED, Case, grid, parse_set, run_case
 from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import ConfigError
-from procs import dask_cluster, descendants, parents
+from procs import dask_cluster, descendants, parents, wait_until
 
 GRID = dict(
     strategies=["mptc", "db_mptc"],
@@ -244,11 +244,11 @@ def test_ctrl_c_on_the_command_line_exits_130_with_the_rows_written(tmp_path):
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
-        deadline = time.monotonic() + 120
-        while len(list((out / "bags").glob("*"))) < 2 if (out / "bags").exists() else True:
-            assert p.poll() is None, p.communicate()
-            assert time.monotonic() < deadline, "no run finished"
-            time.sleep(0.05)
+        wait_until(
+            lambda: (out / "bags").exists() and len(list((out / "bags").iterdir())) >= 2,
+            "no run finished",
+            proc=p,
+        )
         p.send_signal(signal.SIGINT)
         stdout, stderr = p.communicate(timeout=60)
     finally:

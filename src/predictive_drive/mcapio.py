@@ -114,17 +114,7 @@ class ChunkWriter:
     def add(self, channel_id: int, time_ns: int, data: bytes) -> None:
         """A message logged and published at ``time_ns``, with the channel's next sequence
         number (1, 2, 3, ..., as rosbag2 numbers them per topic)."""
-        counts = self.counts
-        seq = counts[channel_id] = counts[channel_id] + 1
-        chunk = self._chunk
-        index = self._index.get(channel_id)
-        if index is None:
-            index = self._index[channel_id] = []
-        index += (time_ns, len(chunk))
-        chunk += _MESSAGE.pack(5, 22 + len(data), channel_id, seq, time_ns, time_ns)
-        chunk += data
-        if len(chunk) > self._chunk_size:
-            self._finalize()
+        self.add_message(channel_id, time_ns, data, time_ns, self.counts[channel_id] + 1)
 
     def add_message(
         self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int
@@ -312,11 +302,13 @@ class ChunkWriter:
 
 class MessageGroup:
     """Messages that go out together, one after another, each on its own channel with a payload
-    of a constant prefix (may be empty) then a fixed number of bytes (a per-step record):
-    :meth:`add` packs the whole group with one ``struct`` call. The bytes are those
+    of a constant prefix (may be empty) then a fixed number of bytes (a step's state, reference
+    and command): :meth:`add3` packs the three with one ``struct`` call. The bytes are those
     :meth:`ChunkWriter.add` of each message in turn writes, chunk boundaries included."""
 
     def __init__(self, writer: ChunkWriter, parts: Sequence[tuple[int, bytes, int]]) -> None:
+        if len(parts) != 3:
+            raise ValueError(f"a message group has three parts, not {len(parts)}")
         self._w = writer
         self._parts = [(ch, prefix, _MESSAGE_HEAD + len(prefix) + n) for ch, prefix, n in parts]
         self._struct = struct.Struct(
@@ -325,36 +317,16 @@ class MessageGroup:
         self._size = self._struct.size
         self._lengths = tuple(size - 9 for _, _, size in self._parts)  #: each record's length
 
-    def add(self, times: Sequence[int], values: Sequence[bytes]) -> None:
-        """One message per part: its ``values`` (the payload after the prefix) at ``times[i]``
-        (log and publish time)."""
+    def add3(self, t0: int, t1: int, t2: int, v0: bytes, v1: bytes, v2: bytes) -> None:
+        """The three messages: ``v0..v2`` (each payload after its prefix) at ``t0..t2`` (log and
+        publish time). Unrolled: a 20 kHz drive's state, reference and command run through
+        here 20,000 times per simulated second."""
         w = self._w
         chunk = w._chunk
         off = len(chunk)
         if off + self._size > w._chunk_size:  # the chunk fills within the group: one by one
-            for (ch, prefix, _), t, v in zip(self._parts, times, values):
+            for (ch, prefix, _), t, v in zip(self._parts, (t0, t1, t2), (v0, v1, v2)):
                 w.add(ch, t, prefix + v)
-            return
-        counts, index_of = w.counts, w._index
-        args: list[Any] = []
-        for (ch, prefix, size), t, v in zip(self._parts, times, values):
-            seq = counts[ch] = counts[ch] + 1
-            index = index_of.get(ch)
-            if index is None:
-                index = index_of[ch] = []
-            index += (t, off)
-            off += size
-            args += (5, size - 9, ch, seq, t, t, prefix, v)
-        chunk += self._struct.pack(*args)
-
-    def add3(self, t0: int, t1: int, t2: int, v0: bytes, v1: bytes, v2: bytes) -> None:
-        """:meth:`add` of a group of three, unrolled (a 20 kHz drive's state, reference and
-        command: this runs 20,000 times per simulated second)."""
-        w = self._w
-        chunk = w._chunk
-        off = len(chunk)
-        if off + self._size > w._chunk_size:
-            self.add((t0, t1, t2), (v0, v1, v2))
             return
         (c0, p0, n0), (c1, p1, n1), (c2, p2, _) = self._parts
         counts, index_of = w.counts, w._index

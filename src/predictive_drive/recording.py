@@ -43,8 +43,8 @@ from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
 from .core.signals import COMMAND_INDEX, STATE_INDEX
 from .core.timebase import every_steps
-from .core.trace import RECORDS
 from .interface import CLOCK_PERIOD, RECORD_TOPICS, TOOL_TOPICS, TOPICS, node_name
+from .mcapio import MessageGroup
 
 __all__ = [
     "DIAGNOSTICS_NAME",
@@ -219,28 +219,19 @@ class RunRecorder:
         self._spans: list[StrategySpan] = []  #: the last one's end is ``_through``
         self._index = math.nan  #: the strategy index of the last span
         self._through = -1
-        #: in-process without a live view: the per-step records written as one group
-        self._group = (
-            writer.group(
-                [
-                    (RECORD_TOPICS[r], CODECS[RECORD_TOPICS[r]].prefix, 8 * len(RECORDS[r]))
-                    for r in ("state", "reference", "command")
-                ]
-            )
-            if record_tools and live is None
-            else None
-        )
         self._batch: list[Step] = []  #: steps taken, not yet written
-        #: node path: a step's three records as received, written as one group (see flush)
-        self._sizes = tuple(
-            CODECS[RECORD_TOPICS[r]].size for r in ("state", "reference", "command")
-        )
-        self._raw_group = writer.group(
-            [
-                (RECORD_TOPICS[r], b"", size)
-                for r, size in zip(("state", "reference", "command"), self._sizes)
-            ]
-        )
+        keys = [RECORD_TOPICS[r] for r in ("state", "reference", "command")]
+        self._sizes = tuple(CODECS[key].size for key in keys)
+        #: a step's state, reference and command written as one group: in a node, the messages
+        #: as received (see flush); in-process without a live view, the packed rows after each
+        #: record's constant prefix (see record_step); with a live view, message by message
+        self._group: MessageGroup | None = None
+        if not record_tools:
+            self._group = writer.group([(key, b"", size) for key, size in zip(keys, self._sizes)])
+        elif live is None:
+            self._group = writer.group(
+                [(key, CODECS[key].prefix, 8 * len(CODECS[key].fields)) for key in keys]
+            )
         self._prefix_state = CODECS[RECORD_TOPICS["state"]].prefix
         self._prefix_reference = CODECS[RECORD_TOPICS["reference"]].prefix
         self._prefix_command = CODECS[RECORD_TOPICS["command"]].prefix
@@ -409,7 +400,7 @@ class RunRecorder:
         command in one pack where they follow one another."""
         ready = self.writer.ready(self._released)
         write = self.writer.write
-        add3 = self._raw_group.add3
+        add3 = self._group.add3  # type: ignore[union-attr]
         sizes = self._sizes
         i, n = 0, len(ready)
         try:
