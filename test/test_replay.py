@@ -85,7 +85,7 @@ class Listener:
         rclpy.try_shutdown(context=self.ctx)
 
 
-@pytest.mark.parametrize("rate", [1.0, 0.25])
+@pytest.mark.parametrize("rate", [1.0, 0.1])
 def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recording, rate):
     from predictive_drive.ros.processes import isolated_domain
 
@@ -137,7 +137,8 @@ def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recordi
     arrivals = [t for topic in PLAYED for t, _ in listener.got[topic]]
     assert max(arrivals) - min(arrivals) >= 0.95 * 0.05 * 999 / 1000 / rate  # never faster
     assert received_rate <= rate * 1.05, received_rate
-    if rate < 1:  # a pace the player keeps: it says the rate the subscriber sees
+    if rate < 1:  # a pace the player and the subscriber keep (at 0.25 the 15,000 messages/s
+        # made this test process's own subscriber lag on a busy machine): it says the rate seen
         assert report["achieved_rate"] == pytest.approx(received_rate, rel=0.1)
         assert report["achieved_rate"] == pytest.approx(rate, rel=0.05)
 
