@@ -197,7 +197,9 @@ def test_unknown_strategy_lists_the_valid_ones():
 
 
 def _state(k, i=0j, w=0.0):
-    return State(float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0)
+    return State(
+        float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0, i.real, i.imag, w, 0.0
+    )
 
 
 def test_soft_start_is_latched_off_once_flux_reaches_threshold(im_short):

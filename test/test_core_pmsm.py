@@ -304,8 +304,10 @@ def test_phase_current_spectrum_of_a_known_signal():
     i_a = 10 * np.cos(theta) + 1.0 * np.cos(5 * theta) + 0.5 * np.cos(2 * math.pi * 1234.5 * k * ts)
     state = np.zeros((n + 1, len(State._fields)))
     state[:, 0], state[:, 1] = k, k * ts
-    state[:, State._fields.index("theta_e")] = np.mod(theta, 2 * math.pi)
-    state[:, State._fields.index("i_alpha")] = i_a
+    for name in ("theta_e", "theta_e_true"):  # ideal sensors: measured and true alike
+        state[:, State._fields.index(name)] = np.mod(theta, 2 * math.pi)
+    for name in ("i_alpha", "i_alpha_true"):
+        state[:, State._fields.index(name)] = i_a
     tr = Trace(ts, state, np.zeros((n + 1, 5)), np.zeros((n, 17)))
     sp = phase_a_spectrum(tr, 0.0, 0.2)
     assert sp.cycles == 10 and sp.fundamental_hz == pytest.approx(50.0)

@@ -194,6 +194,10 @@ def section_classes(machine: str, family: str) -> dict[str, tuple[type, dict[str
 
 def _coerce(value: Any, hint: Any, where: str) -> Any:
     origin = typing.get_origin(hint)
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where}: expected true or false, got {value!r}")
+        return value
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{where}: expected a number, got {value!r}")
@@ -325,8 +329,8 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
             source=str(path),
             text=text,
         )
-    except ConfigError as e:
-        raise ConfigError(f"{path}: {ctrl_key}: {e}") from None
+    except ConfigError as e:  # its messages name the section and key
+        raise ConfigError(f"{path}: {e}") from None
     _check_windows(sc, path)
     return sc
 
@@ -374,10 +378,11 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
                 raise ConfigError(f"setting {key!r}: {section} has no group {part!r}")
             params = sub
         leaf = path[-1]
-        if leaf not in params:
+        optional = _defaulted(doc, node, where) if len(path) == 1 else set()
+        if leaf not in params and leaf not in optional:
             raise ConfigError(
                 f"setting {key!r}: {section} has no key {leaf!r} here; keys: "
-                f"{', '.join(sorted(params))}"
+                f"{', '.join(sorted(set(params) | optional))}"
             )
         if isinstance(value, str) and value.startswith("*"):
             try:
@@ -390,6 +395,20 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
             value = present * factor
         params[leaf] = value
     return str(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
+def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:
+    """The keys of ``node``'s section a scenario file may leave out (they have a default): a
+    setting may give them though the file does not."""
+    if node not in NODES:
+        return set()
+    machine = _params(doc, SHARED, where).get("machine")
+    family = _params(doc, f"{NAMESPACE}/torque_controller", where).get(FAMILY_KEY)
+    try:
+        cls, _ = section_class(node, str(machine), family)
+    except (KeyError, ValueError):
+        return set()
+    return {f.name for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 
 def scenario_with(scenario: str | Path, settings: dict[str, Any], out_dir: Path) -> Path:

@@ -105,7 +105,7 @@ def tool_messages(state: tuple[float, ...], every: int) -> list[tuple[str, int, 
         return []
     t = state[S.t]
     ns = stamp_ns(t)
-    joint = encode_joint_state(t, state[S.theta_m], state[S.omega_m], state[S.torque])
+    joint = encode_joint_state(t, state[S.theta_m], state[S.omega_m_true], state[S.torque])
     return [("clock", ns, encode_clock(t)), ("joint_states", ns, joint)]
 
 

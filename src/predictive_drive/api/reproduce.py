@@ -42,7 +42,7 @@ __all__ = [
 
 #: the figures of a table row, by metric key (:data:`~..core.metrics.METRICS`)
 TABLE_FIGURES = (
-    "t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "zero_share", "thd",
+    "t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "cal_ave", "deadbeat_share", "zero_share", "thd",
     "thd_harmonics", "compute_us_per_step",
 )  # fmt: skip
 
@@ -222,6 +222,7 @@ def _figures(row: Row) -> dict[str, float]:
         "t_rmse": m.t_rmse,
         "psi_rmse": m.psi_rmse,
         "f_ave_hz": m.f_ave_hz,
+        "f_sw_hz": m.f_sw_hz,
         "cal_ave": m.cal_ave,
         "deadbeat_share": m.deadbeat_share,
         "zero_share": m.utilization[0],

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -10,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import BagWriter, check_new_bag, claim_bag_dir
-from ..config import load_scenario
+from ..config import load_scenario, scenario_with
 from ..core.control import strategy_names
 from ..core.metrics import Metrics
 from ..core.runner import run_inprocess
@@ -125,6 +126,7 @@ def run(
     *,
     strategy: str | None = None,
     duration: float | None = None,
+    settings: dict[str, Any] | None = None,
     engine: str = "ros",
     out: str | Path | None = None,
     switches: Sequence[tuple[float, str]] = (),
@@ -139,7 +141,35 @@ def run(
     :func:`predictive_drive.ros.placement.cpu_plan`) and scheduling policy (``batch`` |
     ``other``) of the ``ros`` engine's node processes; ``peer_timeout``: s of wall time a node
     of a ROS engine waits for a silent peer before the run fails; ``live``: a port to serve the
-    running drive on to Foxglove / Lichtblick (0: none; see :mod:`predictive_drive.live`)."""
+    running drive on to Foxglove / Lichtblick (0: none; see :mod:`predictive_drive.live`);
+    ``settings``: scenario keys changed for this run (see
+    :func:`predictive_drive.config.apply_settings`)."""
+    if not settings:
+        return _run(scenario, strategy, duration, engine, out, switches, progress, affinity,
+                    sched, peer_timeout, live)  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="predictive-drive-") as tmp:
+        source = scenario_with(scenario, settings, Path(tmp))
+        try:
+            return _run(source, strategy, duration, engine, out, switches, progress, affinity,
+                        sched, peer_timeout, live)  # fmt: skip
+        except ConfigError as e:  # name what the user gave, not the file made of it
+            given = " ".join(f"--set {k}={v}" for k, v in settings.items())
+            raise ConfigError(str(e).replace(str(source), f"{scenario} {given}")) from None
+
+
+def _run(
+    scenario: str | Path,
+    strategy: str | None,
+    duration: float | None,
+    engine: str,
+    out: str | Path | None,
+    switches: Sequence[tuple[float, str]],
+    progress: Callable[[int, int], None] | None,
+    affinity: str,
+    sched: str,
+    peer_timeout: float,
+    live: int,
+) -> RunResult:
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     if not (math.isfinite(peer_timeout) and peer_timeout > 0):

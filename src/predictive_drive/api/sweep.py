@@ -301,7 +301,7 @@ def _stop_local(pool: cf.ProcessPoolExecutor) -> None:
 
 #: metrics in the table, in order (utilization is spread over V0..V6)
 COLUMNS = (
-    "t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "speed_rmse", "thd",
+    "t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "cal_ave", "deadbeat_share", "speed_rmse", "thd",
     "thd_harmonics", "thd_cycles", "thd_fundamental_hz", "steps", "t_start", "t_end",
     "compute_ns_mean", "compute_ns_median",
 )  # fmt: skip

@@ -113,7 +113,7 @@ class _Recording(Protocol):
 
 
 #: the metrics ``run`` and ``report`` print, in order (how each is shown: core.metrics.METRICS)
-SHOWN = ("t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "speed_rmse")
+SHOWN = ("t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "cal_ave", "deadbeat_share", "speed_rmse")
 
 
 def print_recording(r: _Recording, wall_s: float | None = None) -> None:
@@ -163,3 +163,16 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         )
     if r.window_note:
         print(f"  note: {r.window_note}")
+
+
+def single_settings(texts: list[str] | None) -> dict[str, Any]:
+    """``--set KEY=VALUE`` arguments → settings, one value per key (a grid is ``sweep``'s)."""
+    from ..api.sweep import parse_set
+
+    settings = {}
+    for text in texts or []:
+        key, values = parse_set(text)
+        if len(values) != 1:
+            raise ConfigError(f"--set {text}: one value per key here (a grid is `sweep`)")
+        settings[key] = values[0]
+    return settings

@@ -11,7 +11,7 @@ from .common import say_json
 HELP = "recordings side by side: metrics, overlaid figures"
 #: the table's rows, by metric (how each is shown: core.metrics.METRICS)
 ROWS = (
-    "t_rmse", "psi_rmse", "f_ave_hz", "cal_ave", "deadbeat_share", "speed_rmse", "thd",
+    "t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "cal_ave", "deadbeat_share", "speed_rmse", "thd",
     "compute_ns_median",
 )  # fmt: skip
 

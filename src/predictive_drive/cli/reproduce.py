@@ -6,10 +6,8 @@ import argparse
 
 from ..api.reproduce import MTPAStudyResult, PaperTableResult, reproduce
 from ..api.run import ENGINES
-from ..api.sweep import parse_set
-from ..errors import ConfigError
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
-from .common import refuse, say_json
+from .common import refuse, say_json, single_settings
 
 HELP = "a paper's table side by side with our figures (or an MTPA study)"
 
@@ -37,12 +35,7 @@ def main(a: argparse.Namespace) -> int:
     table = PAPER_TABLES.get(a.scenario)
     if table is None or not table.compute_ratios:
         refuse(a, f"times the compute ratios, which {a.scenario} has none of", "repeats")
-    settings = {}
-    for text in a.set or []:
-        key, values = parse_set(text)
-        if len(values) != 1:
-            raise ConfigError(f"--set {text}: one value per key here (a grid is `sweep`)")
-        settings[key] = values[0]
+    settings = single_settings(a.set)
     d = reproduce(
         a.scenario,
         engine=a.engine,

@@ -8,7 +8,7 @@ import sys
 from ..api.run import ENGINES, run
 from ..live import DEFAULT_PORT
 from ..ros.placement import AFFINITIES, SCHED_POLICIES
-from .common import print_recording, progress, refuse, say_json
+from .common import print_recording, progress, refuse, say_json, single_settings
 
 HELP = "run a scenario, record it to bags/<run>/ and print its metrics"
 
@@ -30,6 +30,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "config/) or a path to a scenario .yaml")  # fmt: skip
     p.add_argument("--strategy", help="override the scenario's torque_controller.strategy")
     p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
+    p.add_argument(
+        "--set", action="append", metavar="KEY=VALUE",
+        help="a scenario setting, e.g. plant.actuation_delay_steps=1 or "
+        "torque_controller.motor.l_q=*0.7 (repeatable; the bag stores the scenario as run)",
+    )  # fmt: skip
     p.add_argument(
         "--engine",
         default="ros",
@@ -95,6 +100,7 @@ def main(a: argparse.Namespace) -> int:
             a.scenario,
             strategy=a.strategy,
             duration=a.duration,
+            settings=single_settings(a.set),
             engine=a.engine,
             out=a.out,
             switches=a.switch or (),

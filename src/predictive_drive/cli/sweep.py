@@ -14,7 +14,7 @@ HELP = (
     "as one table"
 )
 #: the table's metric columns (how each is shown: core.metrics.METRICS)
-COLUMNS = ("t_rmse", "psi_rmse", "f_ave_hz", "thd")
+COLUMNS = ("t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "thd")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

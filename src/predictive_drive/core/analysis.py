@@ -128,9 +128,10 @@ class LoadStep:
 
 
 def measured_current_angle(trace: Trace) -> np.ndarray:
-    """atan2(-i_d, |i_q|) of the measured current at every state, rad (rotor frame by θ_e)."""
-    i = trace.col("state", "i_alpha") + 1j * trace.col("state", "i_beta")
-    i_dq = i * np.exp(-1j * trace.col("state", "theta_e"))
+    """atan2(-i_d, |i_q|) of the current at every state, rad (rotor frame by θ_e; the true
+    current and angle where sensors measure them)."""
+    i = trace.truth("i_alpha") + 1j * trace.truth("i_beta")
+    i_dq = i * np.exp(-1j * trace.truth("theta_e"))
     return np.arctan2(-i_dq.real, np.abs(i_dq.imag))
 
 
@@ -147,7 +148,7 @@ def load_steps(
     n = trace.steps
     t = np.arange(n) * ts
     theta = measured_current_angle(trace)[:n]
-    amp = np.hypot(trace.col("state", "i_alpha"), trace.col("state", "i_beta"))[:n]
+    amp = np.hypot(trace.truth("i_alpha"), trace.truth("i_beta"))[:n]
     w = max(1, round(average_s / ts))
     smooth = np.convolve(theta, np.ones(w) / w, mode="full")[:n]
     out = []

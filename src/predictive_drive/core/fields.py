@@ -17,7 +17,7 @@ from typing import Any
 
 from ..errors import ConfigError
 
-__all__ = ["Quantity", "check_fields", "choice", "quantity", "spec_of"]
+__all__ = ["Quantity", "check_fields", "choice", "flag", "quantity", "spec_of"]
 
 _KEY = "predictive_drive"
 
@@ -37,11 +37,14 @@ class Quantity:
     nan_default: str = ""
     choices: tuple[str, ...] = ()
     integer: bool = False
+    flag: bool = False  #: true or false
 
     def range_text(self) -> str:
         """The allowed values in words, e.g. '> 0', '>= 0', '0..1', 'one of a, b'."""
         if self.choices:
             return "one of " + ", ".join(self.choices)
+        if self.flag:
+            return "true or false"
         if self.integer and self.high is None and self.low is not None and not self.open_low:
             return f"an integer >= {self.low:g}"
         low = None if self.low is None else f"{'>' if self.open_low else '>='} {self.low:g}"
@@ -69,6 +72,10 @@ class Quantity:
         if self.choices:
             if value not in self.choices:
                 raise ConfigError(f"{where}: {value!r} is not {self.range_text()}")
+            return
+        if self.flag:
+            if not isinstance(value, bool):
+                raise ConfigError(f"{where} must be true or false, got {value!r}")
             return
         values = value if isinstance(value, tuple) else (value,)
         for v in values:
@@ -124,6 +131,11 @@ def choice(
 ) -> Any:
     """A string field: one of ``choices`` (or, when empty, names checked elsewhere)."""
     return _field(Quantity(description, choices=tuple(choices)), default)
+
+
+def flag(description: str, *, default: bool = False) -> Any:
+    """A true/false field."""
+    return _field(Quantity(description, flag=True), default)
 
 
 def _field(q: Quantity, default: Any) -> Any:

@@ -86,8 +86,10 @@ class Metrics:
 
     t_rmse: sqrt(mean((T_e - T*)²)), N·m, true plant torque at sample k against the reference in
     force at step k. psi_rmse: same for |ψ_s| against ψ*, Wb. f_ave_hz: device transitions / (6·t),
-    two transitions per leg change. cal_ave: mean predictions per step. utilization: share of steps
-    choosing V0..V6 (steps of a field-oriented law pick no vector and count for none).
+    two transitions per leg change. f_sw_hz: device turn-on events per device per second (one per
+    leg change, half f_ave): the carrier frequency of a PWM drive. cal_ave: mean predictions
+    per step. utilization: share of steps choosing V0..V6 (steps of a field-oriented law pick no
+    vector and count for none).
     deadbeat_share: share of steps with 0 < t_u < Ts. compute_ns_*: control law only.
     speed_rmse: ω_m against ω_m*, rad/s. thd: phase-a current distortion over ``thd_cycles`` whole
     electrical cycles of the THD window — every spectral line up to Nyquist but DC and the
@@ -107,6 +109,10 @@ class Metrics:
     f_ave_hz: float = metric(
         "f_ave", "kHz", scale=1e-3, fmt=".3f",
         description="device transitions / (6 t), 2 per leg change",
+    )  # fmt: skip
+    f_sw_hz: float = metric(
+        "f_sw", "kHz", scale=1e-3, fmt=".3f",
+        description="turn-on events per device per s, 1 per leg change (PWM carrier)",
     )  # fmt: skip
     cal_ave: float = metric("Cal_ave", fmt=".2f", description="vector predictions per step")
     utilization: tuple[float, ...] = metric(
@@ -210,7 +216,7 @@ def phase_a_spectrum(trace: Trace, t_start: float, t_end: float) -> Spectrum:
     in [t_start, t_end): the cycles are counted on the unwrapped rotor angle θ_e, so the window
     holds an integer number of fundamental periods (no leakage at steady speed)."""
     k0, k1 = step_window(trace, t_start, t_end)
-    theta = np.unwrap(trace.col("state", "theta_e")[k0 : k1 + 1])
+    theta = np.unwrap(trace.truth("theta_e")[k0 : k1 + 1])
     turned = np.abs(theta - theta[0])
     cycles = int(turned[-1] // (2.0 * math.pi))
     if cycles < 1:
@@ -219,7 +225,7 @@ def phase_a_spectrum(trace: Trace, t_start: float, t_end: float) -> Spectrum:
             f"({turned[-1] / (2 * math.pi):.2f} turns)"
         )
     n = int(np.searchsorted(turned, cycles * 2.0 * math.pi))  # first sample of the next cycle
-    i_a = trace.col("state", "i_alpha")[k0 : k0 + n]
+    i_a = trace.truth("i_alpha")[k0 : k0 + n]
     amp = np.abs(np.fft.rfft(i_a)) * (2.0 / n)
     amp[0] /= 2.0
     return Spectrum(k0 * trace.ts, n * trace.ts, cycles, amp)
@@ -238,7 +244,7 @@ def compute_metrics(
     t_ref = trace.col("reference", "torque_ref")[k0:k1]
     psi = np.hypot(trace.col("state", "psi_alpha")[k0:k1], trace.col("state", "psi_beta")[k0:k1])
     psi_ref = trace.col("reference", "flux_ref")[k0:k1]
-    speed = trace.col("state", "omega_m")[k0:k1]
+    speed = trace.truth("omega_m")[k0:k1]
     speed_ref = trace.col("reference", "speed_ref")[k0:k1]
     transitions = trace.col("state", "transitions")[k0 + 1 : k1 + 1].sum()
     vec = trace.col("command", "vector")[k0:k1]
@@ -259,6 +265,7 @@ def compute_metrics(
         t_rmse=float(np.sqrt(np.mean((te - t_ref) ** 2))),
         psi_rmse=float(np.sqrt(np.mean((psi - psi_ref) ** 2))),
         f_ave_hz=float(transitions / (6.0 * n * trace.ts)),
+        f_sw_hz=float(transitions / (12.0 * n * trace.ts)),
         cal_ave=float(trace.col("command", "cal")[k0:k1].mean()),
         utilization=tuple(float(x) for x in np.bincount(vec[fcs].astype(int), minlength=7)[:7] / n),
         deadbeat_share=deadbeat / n,
@@ -372,7 +379,7 @@ class LiveMetrics:
             te - r[R.torque_ref],
             math.hypot(s[S.psi_alpha], s[S.psi_beta]) - r[R.flux_ref],
             c[C.torque_est] - te,
-            s[S.omega_m] - r[R.speed_ref],
+            s[S.omega_m_true] - r[R.speed_ref],
             s[S.transitions],
         )
         self._period.add(*errors)
@@ -403,7 +410,7 @@ class LiveMetrics:
         p.t_err2 = _running_sum(p.t_err2, te - r[:, R.torque_ref], True)
         p.psi_err2 = _running_sum(p.psi_err2, np.asarray(flux) - r[:, R.flux_ref], True)
         p.est_err2 = _running_sum(p.est_err2, c[:, C.torque_est] - te, True)
-        p.speed_err2 = _running_sum(p.speed_err2, s[:, S.omega_m] - r[:, R.speed_ref], True)
+        p.speed_err2 = _running_sum(p.speed_err2, s[:, S.omega_m_true] - r[:, R.speed_ref], True)
         p.transitions = _running_sum(p.transitions, s[:, S.transitions], False)
         p.n += m
         self.steps += m

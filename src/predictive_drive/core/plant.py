@@ -4,11 +4,18 @@ Each period is split into the command's piecewise-constant switching segments
 (docs/physics.md#the-inverter-and-the-command) and each segment is integrated with the integrator
 passed in, in sub-steps of at most ``max_substep`` (the IM's exact discretisation for frozen ω, the
 PMSM's fused RK4).
+
+A real drive (docs/physics.md#a-real-drive), each part off by default: the command may act
+``actuation_delay_steps`` periods after its sample (the periods before the first command acts
+hold every phase low); dead time and device drops split the period further, at every switching
+edge, into segments whose leg voltages follow the phase currents' signs; and ``sensors`` turn the
+true currents and position into what the controller measures (the truth published beside).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -16,13 +23,17 @@ from .inverter import clarke, segments
 from .machines import Machine
 from .machines.induction import IM_STATE, InductionCoefficients, InductionMotor, induction_exact
 from .machines.pmsm import PMSM, PMSM_STATE, PMSMCoefficients, pmsm_rk4
-from .signals import COMMAND_INDEX, PULSES, State, new_record
+from .sensors import Sensors
+from .signals import COMMAND_INDEX, PULSES, PhasePulses, State, new_record
 from .timebase import StepProfile
 
 __all__ = ["PLANTS", "InductionPlant", "InverterPlant", "PMSMPlant", "make_plant", "rk4"]
 
 Dynamics = Callable[[float, Any, Any, Any], Any]
 TWO_PI = 2.0 * math.pi
+HALF_SQRT3 = 0.5 * math.sqrt(3.0)
+#: what the inverter does before the first command acts (actuation delay): every phase low
+ALL_LOW = PhasePulses(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _K = COMMAND_INDEX.k
 _IM_I, _IM_PSI, _IM_W, _IM_TH = IM_STATE.i_s, IM_STATE.psi_s, IM_STATE.omega_m, IM_STATE.theta_m
 _PM_I, _PM_W, _PM_TH = PMSM_STATE.i_dq, PMSM_STATE.omega_m, PMSM_STATE.theta_m
@@ -81,6 +92,10 @@ class InverterPlant:
         load: StepProfile,
         max_substep: float,
         integrator: Callable[..., tuple[Any, ...]] | None = None,
+        actuation_delay_steps: int = 0,
+        dead_time: float = 0.0,
+        device_drop: float = 0.0,
+        sensors: Sensors | None = None,
     ) -> None:
         self.motor = motor
         self.ts = ts
@@ -95,6 +110,19 @@ class InverterPlant:
         self.x: tuple[Any, ...] = self.x0
         self.switches = (0, 0, 0)
         self._transitions = 0
+        #: the commands issued but not yet acting, oldest first (actuation delay)
+        self._pending: deque[Sequence[float]] | None = (
+            deque([ALL_LOW] * actuation_delay_steps) if actuation_delay_steps else None
+        )
+        self._dead = dead_time / ts  #: dead time as a share of Ts
+        self._drop = device_drop
+        self._real_inverter = dead_time > 0.0 or device_drop > 0.0
+        self._carry = [0.0, 0.0, 0.0]  #: dead time of each leg running on into this period
+        self.sensors = sensors
+
+    def _i_ab(self, x: tuple[Any, ...]) -> complex:
+        """The stator current in αβ of state ``x``."""
+        raise NotImplementedError
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
         """(i_s αβ, ω_m, θ_e wrapped, T_e, ψ_s αβ, θ_m) of the present state."""
@@ -103,15 +131,19 @@ class InverterPlant:
     def state(self) -> State:
         """The present state k as published (measured channels + truth)."""
         i, w, the, te, psi, th = self._outputs()
+        ia, ib = i.real, i.imag
+        m_ia, m_ib, m_w, m_the = (
+            (ia, ib, w, the) if self.sensors is None else self.sensors.measure(i, th, w)
+        )
         return new_record(
             State,
             (
                 float(self.k),
                 self.k * self.ts,
-                i.real,
-                i.imag,
-                w,
-                the,
+                m_ia,
+                m_ib,
+                m_w,
+                m_the,
                 self.u_dc,
                 te,
                 psi.real,
@@ -119,6 +151,10 @@ class InverterPlant:
                 th,
                 self.load,
                 float(self._transitions),
+                ia,
+                ib,
+                w,
+                the,
             ),
         )
 
@@ -128,7 +164,13 @@ class InverterPlant:
             raise ValueError(
                 f"plant is at step {self.k} but got the command for step {command[_K]:g}"
             )
-        segs, self.switches, self._transitions = segments(command[PULSES], self.switches)
+        pulses = command[PULSES]
+        if self._pending is not None:  # the command acts later; an earlier one acts now
+            self._pending.append(pulses)
+            pulses = self._pending.popleft()
+        if self._real_inverter:
+            return self._step_real(pulses)
+        segs, self.switches, self._transitions = segments(pulses, self.switches)
         ts = self.ts
         t = self.k * ts
         load = self.load  # constant over the period
@@ -149,6 +191,66 @@ class InverterPlant:
         self.load = self._load.at(self.k)
         return self.state()
 
+    def _step_real(self, pulses: Sequence[float]) -> State:
+        """One period through an inverter with dead time and device drops: during the dead time
+        after each edge of a leg both its devices are off and the leg follows its current's sign
+        (low while the current flows out of it, high while it flows in); every conducting device
+        drops ``device_drop`` against the current. The signs are the currents' at the start of
+        each segment."""
+        ra, rb, rc, da, db, dc = pulses
+        rises, falls, duties = (ra, rb, rc), (ra + da, rb + db, rc + dc), (da, db, dc)
+        before = self.switches
+        _, self.switches, self._transitions = segments(pulses, before)
+        dead = self._dead
+        cuts = {0.0, 1.0}
+        windows: list[list[tuple[float, float]]] = []  # per leg: its dead intervals
+        carry = self._carry
+        for leg in range(3):
+            r, f, d = rises[leg], falls[leg], duties[leg]
+            edges = [e for e in (r, f) if d > 0.0 and 0.0 < e < 1.0]
+            if (d > 0.0 and r == 0.0) != bool(before[leg]):
+                edges.append(0.0)
+            spans = [(0.0, carry[leg])] if carry[leg] > 0.0 else []
+            carry[leg] = 0.0
+            for e in edges:
+                end = e + dead
+                spans.append((e, min(end, 1.0)))
+                carry[leg] = max(carry[leg], end - 1.0)
+            windows.append(spans)
+            cuts.update(e for e in edges)
+            cuts.update(b for _, b in spans if b < 1.0)
+        ts, u_dc, drop = self.ts, self.u_dc, self._drop
+        t = self.k * ts
+        load = self.load
+        x = self.x
+        coef, integrate, max_sub = self._coef, self._integrate, self._max_substep
+        points = sorted(cuts)
+        for t0, t1 in zip(points, points[1:]):
+            mid = 0.5 * (t0 + t1)
+            i = self._i_ab(x)
+            currents = (
+                i.real,
+                -0.5 * i.real + HALF_SQRT3 * i.imag,
+                -0.5 * i.real - HALF_SQRT3 * i.imag,
+            )
+            legs = []
+            for leg in range(3):
+                cur = currents[leg]
+                if any(a <= mid < b for a, b in windows[leg]):
+                    high = cur < 0.0  # both devices off: a diode carries the current
+                else:
+                    high = rises[leg] <= mid < falls[leg]
+                sign = (cur > 0.0) - (cur < 0.0)
+                legs.append(u_dc * high - sign * drop)
+            h = (t1 - t0) * ts
+            n = 1 if h <= max_sub else math.ceil(h / max_sub - 1e-9)
+            x = integrate(t, x, (clarke(*legs), load), coef, h, n)
+            t += h
+        self.x = x
+        self.k += 1
+        self.load = self._load.at(self.k)
+        return self.state()
+
 
 class InductionPlant(InverterPlant):
     """Induction motor (docs/physics.md#induction-motor); state (i_s, ψ_s, ω_m, θ_m), initially all
@@ -158,6 +260,10 @@ class InductionPlant(InverterPlant):
     coefficients = InductionCoefficients
     x0 = (0j, 0j, 0.0, 0.0)
     default_integrator = staticmethod(induction_exact)
+
+    def _i_ab(self, x: tuple[Any, ...]) -> complex:
+        i: complex = x[_IM_I]
+        return i
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
         x = self.x
@@ -175,6 +281,11 @@ class PMSMPlant(InverterPlant):
     coefficients = PMSMCoefficients
     x0 = (0j, 0.0, 0.0)
     default_integrator = staticmethod(pmsm_rk4)
+
+    def _i_ab(self, x: tuple[Any, ...]) -> complex:
+        the = self._coef.p * x[_PM_TH]
+        i: complex = x[_PM_I] * complex(math.cos(the), math.sin(the))
+        return i
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
         x = self.x
@@ -197,7 +308,15 @@ PLANTS: dict[str, type[InverterPlant]] = {
 
 
 def make_plant(
-    machine: str, motor: Any, *, ts: float, u_dc: float, load: StepProfile, max_substep: float
+    machine: str,
+    motor: Any,
+    *,
+    ts: float,
+    u_dc: float,
+    load: StepProfile,
+    max_substep: float,
+    **real: Any,
 ) -> InverterPlant:
-    """The plant of a machine type (every engine and the plant node alike)."""
-    return PLANTS[machine](motor, ts=ts, u_dc=u_dc, load=load, max_substep=max_substep)
+    """The plant of a machine type (every engine and the plant node alike); ``real``: the
+    :class:`InverterPlant` settings of a real drive (delay, dead time, drops, sensors)."""
+    return PLANTS[machine](motor, ts=ts, u_dc=u_dc, load=load, max_substep=max_substep, **real)

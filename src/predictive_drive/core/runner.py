@@ -15,6 +15,7 @@ from .control import Controller, make_controller, strategy_names
 from .control.speed_pi import SpeedPI
 from .plant import InverterPlant, make_plant
 from .scenario import PlantParams, Scenario
+from .sensors import Sensors
 from .signals import Command, Reference, State
 from .trace import Trace, TraceBuilder
 
@@ -35,8 +36,30 @@ class Components:
 
 def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
     """The plant of a scenario's plant section (shared by the in-process engine and plant_node)."""
+    p.check_timing(ts)
+    sensors = None
+    if p.sensed:
+        sensors = Sensors(
+            ts=ts,
+            pole_pairs=p.motor.p,
+            noise=p.current_noise,
+            adc_bits=p.current_adc_bits,
+            adc_range=p.current_range,
+            encoder_lines=p.encoder_lines,
+            speed_window=p.speed_window,
+            seed=p.sensor_seed,
+        )
     return make_plant(
-        machine, p.motor, ts=ts, u_dc=p.u_dc, load=p.load_profile(), max_substep=p.max_substep
+        machine,
+        p.motor,
+        ts=ts,
+        u_dc=p.u_dc,
+        load=p.load_profile(),
+        max_substep=p.max_substep,
+        actuation_delay_steps=p.actuation_delay_steps,
+        dead_time=p.dead_time,
+        device_drop=p.device_drop,
+        sensors=sensors,
     )
 
 

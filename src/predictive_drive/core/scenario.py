@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -49,17 +50,83 @@ class RunParams:
 
 @dataclass(frozen=True)
 class PlantParams:
-    """Plant: machine, inverter, load steps, integrator sub-step."""
+    """Plant: machine, inverter, load steps, integrator sub-step; and what makes it a real drive
+    (docs/physics.md#a-real-drive), every one ideal by default: the computation delay, the
+    inverter's dead time and device drops, the current and position sensors."""
 
     motor: Any  #: the machine type's motor parameters (:data:`~.machines.MOTORS`)
     u_dc: float = quantity("DC-link voltage", "V", gt=0)
     load_times: tuple[float, ...] = quantity("times of the load-torque steps", "s", ge=0)
     load_values: tuple[float, ...] = quantity("load torque from each time on", "N·m")
     max_substep: float = quantity("integrator sub-step bound", "s", gt=0)
+    actuation_delay_steps: int = quantity(
+        "periods between sampling and the command acting (1: a DSP's computation delay)",
+        ge=0, le=2, integer=True, default=0,
+    )  # fmt: skip
+    dead_time: float = quantity(
+        "inverter dead time per switching edge (the leg follows its current's sign)", "s",
+        ge=0, default=0.0,
+    )  # fmt: skip
+    device_drop: float = quantity(
+        "on-state voltage of a conducting device or diode", "V", ge=0, default=0.0
+    )
+    current_noise: float = quantity(
+        "Gaussian noise on each measured phase current", "A rms", ge=0, default=0.0
+    )
+    current_adc_bits: int = quantity(
+        "ADC resolution of the phase currents (0: exact)", ge=0, le=24, integer=True, default=0
+    )
+    current_range: float = quantity(
+        "ADC full scale: measures -range..+range", "A", gt=0,
+        nan_default="none (needed with current_adc_bits)", default=math.nan,
+    )  # fmt: skip
+    encoder_lines: int = quantity(
+        "incremental encoder lines per revolution, 4 counts each (0: exact angle and speed)",
+        ge=0, integer=True, default=0,
+    )  # fmt: skip
+    speed_window: float = quantity(
+        "speed from the encoder: count difference over this window", "s", gt=0, default=1e-3
+    )
+    sensor_seed: int = quantity(
+        "seed of the sensors' noise (same seed, same recording)", ge=0, integer=True, default=0
+    )
 
     def __post_init__(self) -> None:
         check_fields(self)
         self.load_profile()
+        if self.current_adc_bits and math.isnan(self.current_range):
+            raise ConfigError(
+                f"plant.current_adc_bits: {self.current_adc_bits} bits need "
+                f"plant.current_range (A, the ADC's full scale) > 0"
+            )
+        if not math.isnan(self.current_range) and not self.current_adc_bits:
+            raise ConfigError(
+                "plant.current_range: given without plant.current_adc_bits (1..24): "
+                "the range only means something for an ADC"
+            )
+
+    def check_timing(self, ts: float) -> None:
+        """ConfigError if a setting does not fit the control period ``ts`` (s)."""
+        if self.dead_time >= 0.1 * ts:
+            raise ConfigError(
+                f"plant.dead_time: {self.dead_time:g} s must be below a tenth of the control "
+                f"period ({0.1 * ts:g} s at ts = {ts:g} s)"
+            )
+        if self.encoder_lines and self.speed_window < ts:
+            raise ConfigError(
+                f"plant.speed_window: {self.speed_window:g} s is shorter than the control period "
+                f"(ts = {ts:g} s); the encoder's speed needs at least one period"
+            )
+
+    @property
+    def ideal(self) -> bool:
+        """No delay, no dead time or drops, exact sensors: the papers' drive."""
+        return not (self.actuation_delay_steps or self.dead_time or self.device_drop or self.sensed)
+
+    @property
+    def sensed(self) -> bool:
+        """Any sensor that is not exact."""
+        return bool(self.current_noise or self.current_adc_bits or self.encoder_lines)
 
     def load_profile(self) -> StepProfile:
         return StepProfile(tuple(self.load_times), tuple(self.load_values))
@@ -109,6 +176,7 @@ class Scenario:
     text: str = ""
 
     def __post_init__(self) -> None:
+        self.plant.check_timing(self.ts)
         cls = controller_class(self.family)
         if not isinstance(self.controller, cls.params_type):
             raise ConfigError(

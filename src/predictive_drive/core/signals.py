@@ -47,6 +47,10 @@ class State(NamedTuple):
     theta_m: float  #: shaft angle, rad, unwrapped (truth)
     load_torque: float  #: load torque applied during the coming period, N·m (truth)
     transitions: float  #: device on/off transitions during the period that ended at k (truth)
+    i_alpha_true: float  #: stator current α, A (truth; i_alpha is it as measured)
+    i_beta_true: float  #: stator current β, A (truth)
+    omega_m_true: float  #: mechanical speed, rad/s (truth)
+    theta_e_true: float  #: rotor electrical angle, rad, [0, 2π) (truth)
 
 
 class Reference(NamedTuple):

@@ -38,6 +38,13 @@ class Trace:
         rows: np.ndarray = getattr(self, record)
         return rows[:, RECORDS[record].index(name)]
 
+    def truth(self, name: str) -> np.ndarray:
+        """The true value of a measured state field (``i_alpha``, ``i_beta``, ``omega_m``,
+        ``theta_e``): its ``<name>_true`` column, or the field itself in a recording made before
+        the state carried the truth (there the two were one)."""
+        true = self.col("state", f"{name}_true")
+        return true if np.isfinite(true).all() else self.col("state", name)
+
     @property
     def steps(self) -> int:
         return int(self.command.shape[0])

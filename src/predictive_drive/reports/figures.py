@@ -205,7 +205,7 @@ def compare_figures(runs: Sequence[Run]) -> dict[str, Any]:
 
 
 #: the metrics a sweep's figures plot (their axes from :data:`~..core.metrics.METRICS`)
-SWEEP_METRICS = ("t_rmse", "psi_rmse", "f_ave_hz", "thd", "speed_rmse")
+SWEEP_METRICS = ("t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "thd", "speed_rmse")
 
 
 def _sweep_x(value: Any) -> float:

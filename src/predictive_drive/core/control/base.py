@@ -16,11 +16,39 @@ from collections.abc import Mapping
 from time import perf_counter_ns
 from typing import Any, ClassVar, NamedTuple, Protocol
 
-from ..inverter import active_then_zero, vector_voltages
+from ..fields import flag
+from ..inverter import active_then_zero, clarke, vector_voltages
 from ..machines import Machine
+from ..machines.pmsm import PMSMCoefficients, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
 
-__all__ = ["Controller", "Decision", "Strategy", "VectorController", "instantiate"]
+__all__ = [
+    "Controller",
+    "pmsm_predicted",
+    "Decision",
+    "Strategy",
+    "VectorController",
+    "delay_compensation",
+    "instantiate",
+]
+
+
+def pmsm_predicted(c: PMSMCoefficients, ts: float, state: State, u_ab: complex) -> State:
+    """A PMSM family's :meth:`Controller._predict`: the measured current and angle one period
+    ahead under ``u_ab`` by the model ``c``."""
+    i, the = pmsm_predict_current(
+        c, ts, complex(state.i_alpha, state.i_beta), state.theta_e, state.omega_m, u_ab
+    )
+    return state._replace(i_alpha=i.real, i_beta=i.imag, theta_e=the % TWO_PI)
+
+
+def delay_compensation() -> Any:
+    """The ``delay_compensation`` field every family's settings have."""
+    return flag(
+        "compensate one period of computation delay: predict the state at k+1 with the command "
+        "in force, decide for the period after (plant.actuation_delay_steps)"
+    )
+
 
 NAN = math.nan
 TWO_PI = 2.0 * math.pi
@@ -52,6 +80,11 @@ class Controller:
     proper, the only part timed into ``compute_ns``) and :meth:`_command` (the law's output →
     the command: pulses and the diagnostic fields). :meth:`_dc_link` sees the measured DC-link
     voltage whenever it changes. Strategies switch at a step boundary.
+
+    With ``delay_compensation`` (docs/physics.md#computation-delay) the command k acts during
+    period k+1: the family's :meth:`_predict` turns the measured state k into the state at k+1
+    under the voltage of the command in force during period k (the one issued at k-1), and the
+    law decides on that, as Cortés et al. (IEEE TIE 2012) do.
     """
 
     family: ClassVar[str]
@@ -65,6 +98,8 @@ class Controller:
         self._names = tuple(self.strategies)
         self.set_strategy(params.strategy)
         self._u_dc = NAN
+        self._compensate = bool(getattr(params, "delay_compensation", False))
+        self.u_in_force = 0j  #: average αβ voltage of the command acting this period, V
 
     def set_strategy(self, name: str) -> None:
         """Switch the control law; takes effect at the next step. ValueError if unknown."""
@@ -75,6 +110,11 @@ class Controller:
         """The measured DC-link voltage (V) changed (and at the first step)."""
 
     def _observe(self, state: State) -> None:
+        raise NotImplementedError
+
+    def _predict(self, state: State, u_ab: complex) -> State:
+        """State k with its measured currents and angle moved one period ahead under the
+        average voltage ``u_ab`` (V, αβ): what the law sees with delay compensation."""
         raise NotImplementedError
 
     def _decide(self, state: State, ref: Reference) -> Any:
@@ -103,11 +143,16 @@ class Controller:
         if state.u_dc != self._u_dc:
             self._u_dc = state.u_dc
             self._dc_link(state.u_dc)
+        if self._compensate:
+            state = self._predict(state, self.u_in_force)
         self._observe(state)
         t0 = perf_counter_ns()
         out = self._decide(state, ref)
         elapsed = perf_counter_ns() - t0
-        return self._command(out, state, float(elapsed))
+        cmd = self._command(out, state, float(elapsed))
+        if self._compensate:  # a leg's average voltage over the period is its duty·U_dc
+            self.u_in_force = state.u_dc * clarke(cmd.duty_a, cmd.duty_b, cmd.duty_c)
+        return cmd
 
 
 class Decision(NamedTuple):

@@ -24,12 +24,12 @@ from dataclasses import dataclass
 
 from ...errors import ConfigError
 from ..fields import check_fields, choice, quantity
-from ..inverter import inverse_park, park
+from ..inverter import clarke, inverse_park, park
 from ..machines import Machine
-from ..machines.pmsm import PMSM
+from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Command, PhasePulses, Reference, State
 from ..svpwm import linear_limit, svpwm
-from .base import Controller
+from .base import Controller, delay_compensation, pmsm_predicted
 from .mtpa import INJECTION_FORMS, FormulaMTPA, InjectionMTPA, MTPAContext, MTPAInputs, ZeroD
 
 __all__ = [
@@ -99,6 +99,20 @@ class FOCParams:
         "Hz",
         gt=0,
         default=5.0,
+    )
+    delay_compensation: bool = delay_compensation()
+    dead_time_compensation: float = quantity(
+        "dead time the voltage feed-forward compensates: each phase's reference raised by "
+        "sign(i)·(t_d/Ts·U_dc + drop) (0: none)",
+        "s",
+        ge=0,
+        default=0.0,
+    )
+    drop_compensation: float = quantity(
+        "device drop the voltage feed-forward compensates (with dead_time_compensation)",
+        "V",
+        ge=0,
+        default=0.0,
     )
 
     def __post_init__(self) -> None:
@@ -190,6 +204,9 @@ class FOCController(Controller):
         )
         self.loop = CurrentLoop(m, ts=ts, bandwidth_hz=params.current_bandwidth_hz)
         self._k_t = 1.5 * m.p * m.psi_f
+        self._coef = PMSMCoefficients.of(m)
+        self._ff_time = params.dead_time_compensation / ts  #: share of Ts to feed forward
+        self._ff_drop = params.drop_compensation
         self.theta = 0.0  #: current angle in use, rad
         self.u_dq = 0j  #: the voltage applied over the last period, rotor frame, V
         self.u_ab = 0j  #: the same in αβ, V
@@ -203,6 +220,19 @@ class FOCController(Controller):
     def set_strategy(self, name: str) -> None:
         super().set_strategy(name)
         self.strategy.start(self.theta, self._ctx)  # bumpless: the new law starts where we are
+
+    def _predict(self, state: State, u_ab: complex) -> State:
+        return pmsm_predicted(self._coef, self.ts, state, u_ab)
+
+    def _feed_forward(self, state: State) -> complex:
+        """The dead-time and drop feed-forward (αβ, V): each phase's voltage raised by what the
+        inverter loses in the direction of its current (docs/physics.md#dead-time-and-device-drops)."""
+        v = self._ff_time * state.u_dc + self._ff_drop
+        a = state.i_alpha
+        b = -0.5 * a + 0.5 * math.sqrt(3.0) * state.i_beta
+        c = -a - b
+        sign = [(x > 0.0) - (x < 0.0) for x in (a, b, c)]
+        return clarke(sign[0] * v, sign[1] * v, sign[2] * v)
 
     def _observe(self, state: State) -> None:
         c = self._ctx
@@ -248,8 +278,13 @@ class FOCController(Controller):
         return self.u_ab
 
     def _command(self, u_ab: complex, state: State, compute_ns: float) -> Command:
-        mod = svpwm(u_ab, state.u_dc)
-        self.u_ab = mod.applied
+        if self._ff_time or self._ff_drop:
+            ff = self._feed_forward(state)
+            mod = svpwm(u_ab + ff, state.u_dc)
+            self.u_ab = mod.applied - ff  # what the machine gets, the inverter's loss made good
+        else:
+            mod = svpwm(u_ab, state.u_dc)
+            self.u_ab = mod.applied
         gradient = getattr(self.strategy, "gradient", NAN)
         pulses: PhasePulses = mod.pulses
         return self.command(

@@ -18,7 +18,7 @@ from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.induction import InductionCoefficients, InductionMotor
 from ..signals import Reference, State, new_record
-from .base import Decision, VectorController
+from .base import Decision, VectorController, delay_compensation
 
 __all__ = [
     "A0_FORMS",
@@ -212,6 +212,7 @@ class InductionControllerParams:
         A0_FORMS,
         default="derived",
     )
+    delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -236,6 +237,7 @@ class InductionController(VectorController):
         self._pred = IMPrediction(c, ts, params.lambda_psi, params.a0_form == "paper_printed")
         super().__init__(params, ts=ts)
         self.psi_hat = 0j
+        self._psi_next = 0j  #: delay compensation: ψ̂ at k+1 under the voltage in force
         self.soft_start = params.soft_start_flux > 0
 
     def _observe(self, state: State) -> None:
@@ -248,11 +250,22 @@ class InductionController(VectorController):
         self.est_flux = mag
         self.est_flux_angle = math.atan2(psi.imag, psi.real) % TWO_PI
 
+    def _predict(self, state: State, u_ab: complex) -> State:
+        a_ii, b_ip, cw, rs = self._coef[:4]
+        ts = self.ts
+        wr = self._coef.p * state.omega_m
+        i = complex(state.i_alpha, state.i_beta)
+        psi = self.psi_hat
+        i1 = i + ts * (complex(a_ii, wr) * i + complex(b_ip, -wr * cw) * psi + cw * u_ab)
+        self._psi_next = psi + ts * (u_ab - rs * i)
+        return state._replace(i_alpha=i1.real, i_beta=i1.imag)
+
     def _decide(self, state: State, ref: Reference) -> Decision:
         # the IM's free response (i_free, ψ_free, a_0) is the prediction model: part of the law
         i = complex(state.i_alpha, state.i_beta)
         m = self._pred
-        m.prepare(i, self.psi_hat, state.omega_m, self._volts)  # keeps i for _applied
+        psi = self._psi_next if self._compensate else self.psi_hat
+        m.prepare(i, psi, state.omega_m, self._volts)  # keeps i for _applied
         self.est_torque = m.te
         if self.soft_start:
             return Decision(0 if abs(i) > self.params.soft_start_current else 1, 1.0, NAN, 0)
@@ -260,5 +273,8 @@ class InductionController(VectorController):
         return d
 
     def _applied(self, d: Decision, state: State) -> None:
+        if self._compensate:  # ψ̂ follows the voltage that acts, not the one just decided
+            self.psi_hat = self._psi_next
+            return
         u_avg = d.fraction * self._volts[d.vector]
         self.psi_hat = self.psi_hat + self.ts * (u_avg - self._coef.r_s * self._pred.i)

@@ -22,7 +22,7 @@ from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
-from .base import Decision, VectorController
+from .base import Decision, VectorController, delay_compensation, pmsm_predicted
 from .candidates import TABLES
 
 __all__ = [
@@ -255,6 +255,7 @@ class PMSMControllerParams:
         nan_default="1 % of rated torque",
         default=NAN,
     )
+    delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -276,6 +277,9 @@ class PMSMController(VectorController):
             PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor
         )
         super().__init__(params, ts=ts)
+
+    def _predict(self, state: State, u_ab: complex) -> State:
+        return pmsm_predicted(self._pred.c, self.ts, state, u_ab)
 
     def _observe(self, state: State) -> None:
         m = self._pred

@@ -15,6 +15,7 @@ from typing import NamedTuple
 from ..fields import check_fields, quantity
 
 __all__ = [
+    "pmsm_predict_current",
     "PMSM",
     "PMSM_STATE",
     "PMSMCoefficients",
@@ -175,3 +176,22 @@ def pmsm_rk4(
         th += sixth * (w + 2.0 * w2 + 2.0 * w3 + w4)
         w += sixth * (c1 + 2.0 * c2 + 2.0 * c3 + c4)
     return complex(i_d, i_q), w, th
+
+
+def pmsm_predict_current(
+    c: PMSMCoefficients, ts: float, i_ab: complex, theta_e: float, omega_m: float, u_ab: complex
+) -> tuple[complex, float]:
+    """(i_αβ, θ_e) one period ahead with the voltage ``u_ab`` (V, αβ) applied over it, by forward
+    Euler of the model's dq equations at constant speed, the voltage turned into dq at the
+    period's middle angle (the controllers' delay compensation)."""
+    w_e = c.p * omega_m
+    rot = complex(math.cos(theta_e), -math.sin(theta_e))
+    i = i_ab * rot
+    mid = theta_e + 0.5 * w_e * ts
+    u = u_ab * complex(math.cos(mid), -math.sin(mid))
+    i_d, i_q = i.real, i.imag
+    d_d = (u.real - c.r_s * i_d + w_e * c.l_q * i_q) * c.inv_l_d
+    d_q = (u.imag - c.r_s * i_q - w_e * (c.l_d * i_d + c.psi_f)) * c.inv_l_q
+    theta1 = theta_e + w_e * ts
+    i1 = complex(i_d + ts * d_d, i_q + ts * d_q)
+    return i1 * complex(math.cos(theta1), math.sin(theta1)), theta1
