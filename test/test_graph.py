@@ -705,13 +705,15 @@ def test_a_killed_node_leaves_no_shared_memory_behind(cli_run, tmp_path):
     node)."""
     from predictive_drive.ros.processes import _shm_files
 
-    before = _fastdds_files()
     p, nodes = started_recording(cli_run, tmp_path / "shm")
+    # the killed node's own segments (other tests' processes may come and go meanwhile)
+    mine = {f for f in _shm_files(str(nodes["plant"])) if f.startswith("fastrtps_")}
+    assert mine
     os.kill(nodes["plant"], signal.SIGKILL)
     p.communicate(timeout=120)
     assert p.returncode == 2
     in_use = set().union(*(_shm_files(d.name) for d in Path("/proc").iterdir() if d.name.isdigit()))
-    left = _fastdds_files() - before - in_use
+    left = (mine & _fastdds_files()) - in_use
     assert not left, sorted(left)
 
 
