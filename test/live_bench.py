@@ -14,6 +14,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 from foxglove_client import FoxgloveClient  # noqa: E402
+from procs import kill_if_running
 
 CLI = [sys.executable, "-m", "predictive_drive.cli", "run", "im_short", "--duration", "3", "--json"]
 
@@ -47,9 +48,7 @@ def one(live: bool, out: Path) -> tuple[float, dict[str, int]]:
     try:
         stdout, _ = p.communicate(timeout=300)
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait(timeout=10)
+        kill_if_running(p)
     if live:
         watcher.join(timeout=30)
     d = json.loads(stdout)

@@ -70,6 +70,13 @@ def signal_tree(pid: int, sig: int) -> None:
             pass
 
 
+def kill_if_running(p: subprocess.Popen) -> None:
+    """A test's teardown of a process it started: SIGKILL if it is still running, then reap it."""
+    if p.poll() is None:
+        p.kill()
+        p.wait(timeout=10)
+
+
 def end_all(procs: list[subprocess.Popen], grace: float = 20.0) -> None:
     """End processes a test started, with everything they started: SIGTERM, then SIGKILL for
     whatever is still there after ``grace`` s."""

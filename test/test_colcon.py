@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from procs import kill_if_running
+
 pytestmark = pytest.mark.process
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,9 +98,7 @@ def test_the_installed_nodes_run_as_ros2_run_starts_them(install, tmp_path):
             wall = time.perf_counter() - t0
         finally:
             for p in procs:
-                if p.poll() is None:
-                    p.kill()
-                    p.wait(timeout=10)
+                kill_if_running(p)
     codes = [p.returncode for p in procs]
     assert codes == [0] * len(procs), list(zip(NODES, codes, outs))
     (bag,) = (work / "bags").iterdir()

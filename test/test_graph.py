@@ -28,7 +28,7 @@ from predictive_drive.ros.placement import (
     FASTDDS_PROFILES_ENV,
     cpu_plan,
 )
-from procs import bag_bytes, descendants, signal_tree, wait_until
+from procs import bag_bytes, descendants, kill_if_running, signal_tree, wait_until
 
 pytestmark = pytest.mark.process
 
@@ -548,9 +548,7 @@ def test_nodes_stopped_as_ros2_launch_stops_them_end_cleanly(tmp_path):
             outs = {n: p.communicate(timeout=60)[0] for n, p in procs.items()}
         finally:
             for p in procs.values():
-                if p.poll() is None:
-                    p.kill()
-                    p.wait(timeout=10)
+                kill_if_running(p)
     assert {n: p.returncode for n, p in procs.items()} == dict.fromkeys(START_ORDER, 0), outs
     for name, out in outs.items():
         lines = [ln for ln in out.splitlines() if ln.strip()]
@@ -706,8 +704,14 @@ def test_a_killed_node_leaves_no_shared_memory_behind(cli_run, tmp_path):
     from predictive_drive.ros.processes import _shm_files
 
     p, nodes = started_recording(cli_run, tmp_path / "shm")
-    # the killed node's own segments (other tests' processes may come and go meanwhile)
-    mine = {f for f in _shm_files(str(nodes["plant"])) if f.startswith("fastrtps_")}
+    # the killed node's own segments; those a process outside this run also uses (another
+    # test's, which may end later) are not the launcher's to remove
+    run_pids = {str(p.pid), *(str(c) for c in descendants(p.pid))}
+    outside = set().union(
+        *(_shm_files(d.name) for d in Path("/proc").iterdir()
+          if d.name.isdigit() and d.name not in run_pids)
+    )  # fmt: skip
+    mine = {f for f in _shm_files(str(nodes["plant"])) if f.startswith("fastrtps_")} - outside
     assert mine
     os.kill(nodes["plant"], signal.SIGKILL)
     p.communicate(timeout=120)

@@ -15,6 +15,7 @@ from collections.abc import Iterator
 import pytest
 
 from predictive_drive.config import load_scenario
+from procs import kill_if_running
 
 pytestmark = pytest.mark.process
 
@@ -185,8 +186,6 @@ def test_a_closing_node_that_hangs_is_ended_by_sigalrm(tmp_path):
         p.wait(timeout=20)
         took = time.monotonic() - t0
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait(timeout=10)
+        kill_if_running(p)
     assert p.returncode == -signal.SIGALRM
     assert took < 20  # not the 30 s of the hang

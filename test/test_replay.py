@@ -20,7 +20,7 @@ from predictive_drive.bag import iter_messages
 from predictive_drive.codec import CODECS
 from predictive_drive.config import load_scenario
 from predictive_drive.interface import TOPICS
-from procs import bag_bytes, wait_until
+from procs import bag_bytes, kill_if_running, wait_until
 
 pytestmark = pytest.mark.process
 
@@ -115,9 +115,7 @@ def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recordi
             assert player.returncode == 0, err
             time.sleep(0.2)
         finally:
-            if player.poll() is None:
-                player.kill()
-                player.wait(timeout=10)
+            kill_if_running(player)
             listener.close()
     report = json.loads(out)
     for topic in PLAYED:
@@ -238,9 +236,7 @@ def _play(domain: int, bag, *args: str, listener, ready, until=None, then=_inter
         out, err = p.communicate(timeout=120)
         time.sleep(0.2)  # what is in flight reaches the listener
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait(timeout=10)
+        kill_if_running(p)
     return p.returncode, (json.loads(out) if out.strip() else None), err
 
 
@@ -291,9 +287,7 @@ def test_start_paused_sends_nothing_until_unpaused_and_topics_keep_the_rest_out(
             out, err = p.communicate(timeout=60)
             time.sleep(0.2)
         finally:
-            if p.poll() is None:
-                p.kill()
-                p.wait(timeout=10)
+            kill_if_running(p)
             listener.close()
     assert p.returncode == 0, err
     assert len(listener.got["/drive/command"]) == 1000  # all of the chosen topic
@@ -425,9 +419,7 @@ def test_an_interrupted_replay_into_keeps_a_readable_bag_and_refuses_to_overwrit
         p.send_signal(signal.SIGINT)
         _, err = p.communicate(timeout=60)
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait(timeout=10)
+        kill_if_running(p)
     assert p.returncode == 130, err
     said = re.search(r"the new bag \S+ holds the first (\d+) of 8000 steps replayed", err)
     assert said and "Traceback" not in err, err

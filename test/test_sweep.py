@@ -21,7 +21,7 @@ from predictive_drive.api.sweep import MEASURED, Case, grid, parse_set, run_case
 from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import ConfigError
-from procs import dask_cluster, descendants, parents, wait_until
+from procs import dask_cluster, descendants, kill_if_running, parents, wait_until
 
 GRID = dict(
     strategies=["mptc", "db_mptc"],
@@ -252,9 +252,7 @@ def test_ctrl_c_on_the_command_line_exits_130_with_the_rows_written(tmp_path):
         p.send_signal(signal.SIGINT)
         stdout, stderr = p.communicate(timeout=60)
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait(timeout=10)
+        kill_if_running(p)
     assert p.returncode == 130, stderr
     assert "Traceback" not in stderr
     assert "of 6 runs" in stdout and "interrupted: the rows above are kept" in stdout

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -121,6 +122,17 @@ def run_inprocess_to_bag(
     return trace.steps
 
 
+@contextlib.contextmanager
+def scenario_file(scenario: str | Path, settings: dict[str, Any] | None) -> Iterator[str | Path]:
+    """The scenario with ``settings`` applied, as a file that lasts as long as the block (a ROS
+    engine's nodes read it); the scenario itself when there are none."""
+    if not settings:
+        yield scenario
+        return
+    with tempfile.TemporaryDirectory(prefix="predictive-drive-") as tmp:
+        yield scenario_with(scenario, settings, Path(tmp))
+
+
 def run(
     scenario: str | Path,
     *,
@@ -144,80 +156,62 @@ def run(
     running drive on to Foxglove / Lichtblick (0: none; see :mod:`predictive_drive.live`);
     ``settings``: scenario keys changed for this run (see
     :func:`predictive_drive.config.apply_settings`)."""
-    if not settings:
-        return _run(scenario, strategy, duration, engine, out, switches, progress, affinity,
-                    sched, peer_timeout, live)  # fmt: skip
-    with tempfile.TemporaryDirectory(prefix="predictive-drive-") as tmp:
-        source = scenario_with(scenario, settings, Path(tmp))
-        try:
-            return _run(source, strategy, duration, engine, out, switches, progress, affinity,
-                        sched, peer_timeout, live)  # fmt: skip
-        except ConfigError as e:  # name what the user gave, not the file made of it
-            given = " ".join(f"--set {k}={v}" for k, v in settings.items())
-            raise ConfigError(str(e).replace(str(source), f"{scenario} {given}")) from None
-
-
-def _run(
-    scenario: str | Path,
-    strategy: str | None,
-    duration: float | None,
-    engine: str,
-    out: str | Path | None,
-    switches: Sequence[tuple[float, str]],
-    progress: Callable[[int, int], None] | None,
-    affinity: str,
-    sched: str,
-    peer_timeout: float,
-    live: int,
-) -> RunResult:
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     if not (math.isfinite(peer_timeout) and peer_timeout > 0):
         raise ConfigError(
             f"--peer-timeout must be a positive number of seconds, got {peer_timeout}"
         )
-    sc = load_scenario(scenario, strategy=strategy, duration=duration)
-    bag = Path(out) if out is not None else default_bag_dir(sc)
-    n = sc.run.steps
-    cb = (lambda k: progress(k, n)) if progress is not None else None
-    # checked for every engine, so a bad --switch or --out fails before anything starts
-    at_steps = switch_steps(sc, switches)
-    check_new_bag(bag)
-    if live:
-        check_port(live)
-    t0 = time.perf_counter()
-    # claimed before anything starts: a second run given the same --out is refused
-    with claim_bag_dir(bag):
+    with scenario_file(scenario, settings) as source:
         try:
-            if engine == "inprocess":
-                run_inprocess_to_bag(sc, bag, at_steps, cb, live_port=live, claimed=True)
-            else:
-                from ..ros.launcher import run_graph  # rclpy only when a ROS engine is asked for
+            sc = load_scenario(source, strategy=strategy, duration=duration)
+        except ConfigError as e:  # name what the user gave, not the file made of it
+            if source == scenario:
+                raise
+            given = " ".join(f"--set {k}={v}" for k, v in (settings or {}).items())
+            raise ConfigError(str(e).replace(str(source), f"{scenario} {given}")) from None
+        bag = Path(out) if out is not None else default_bag_dir(sc)
+        n = sc.run.steps
+        cb = (lambda k: progress(k, n)) if progress is not None else None
+        # checked for every engine, so a bad --switch or --out fails before anything starts
+        at_steps = switch_steps(sc, switches)
+        check_new_bag(bag)
+        if live:
+            check_port(live)
+        t0 = time.perf_counter()
+        # claimed before anything starts: a second run given the same --out is refused
+        with claim_bag_dir(bag):
+            try:
+                if engine == "inprocess":
+                    run_inprocess_to_bag(sc, bag, at_steps, cb, live_port=live, claimed=True)
+                else:
+                    # rclpy only when a ROS engine is asked for
+                    from ..ros.launcher import run_graph
 
-                run_graph(
-                    sc,
-                    bag,
-                    composed=(engine == "composed"),
-                    switches=switches,
-                    progress=cb,
-                    affinity=affinity,
-                    sched=sched,
-                    peer_timeout=peer_timeout,
-                    live_port=live,
-                )
-        except KeyboardInterrupt:
-            status = bag_status(bag).describe()
-            raise Interrupted(f"interrupted: {status} (of {n} planned)") from None
-    wall = time.perf_counter() - t0
-    ev = evaluate(bag)
-    return RunResult(
-        sc.name,
-        sc.strategy,
-        engine,
-        ev.steps,
-        bag,
-        wall,
-        ev.metrics,
-        details_of(ev),
-        ev.window_note,
-    )
+                    run_graph(
+                        sc,
+                        bag,
+                        composed=(engine == "composed"),
+                        switches=switches,
+                        progress=cb,
+                        affinity=affinity,
+                        sched=sched,
+                        peer_timeout=peer_timeout,
+                        live_port=live,
+                    )
+            except KeyboardInterrupt:
+                status = bag_status(bag).describe()
+                raise Interrupted(f"interrupted: {status} (of {n} planned)") from None
+        wall = time.perf_counter() - t0
+        ev = evaluate(bag)
+        return RunResult(
+            sc.name,
+            sc.strategy,
+            engine,
+            ev.steps,
+            bag,
+            wall,
+            ev.metrics,
+            details_of(ev),
+            ev.window_note,
+        )

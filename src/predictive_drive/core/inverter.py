@@ -23,6 +23,7 @@ __all__ = [
     "PhasePulses",
     "active_then_zero",
     "clarke",
+    "inverse_clarke",
     "inverse_park",
     "park",
     "segments",
@@ -33,6 +34,7 @@ __all__ = [
 ]
 
 A = cmath.exp(2j * math.pi / 3)
+_HALF_SQRT3 = 0.5 * math.sqrt(3.0)
 
 #: switching state (S_a, S_b, S_c) of V0..V7
 VECTOR_STATES: tuple[tuple[int, int, int], ...] = (
@@ -51,6 +53,13 @@ _STATE_INDEX = {s: n for n, s in enumerate(VECTOR_STATES)}
 def clarke(x_a: float, x_b: float, x_c: float) -> complex:
     """Amplitude-invariant Clarke transform, x_αβ = 2/3 (x_a + a x_b + a² x_c)."""
     return (2.0 / 3.0) * (x_a + A * x_b + A * A * x_c)
+
+
+def inverse_clarke(x_ab: complex) -> tuple[float, float, float]:
+    """The phase quantities (a, b, c) of a space vector without zero sequence (a balanced
+    three-wire machine's currents): x_a = Re x, x_b = Re(x·a²), x_c = Re(x·a)."""
+    r, i = x_ab.real, _HALF_SQRT3 * x_ab.imag
+    return r, -0.5 * r + i, -0.5 * r - i
 
 
 def park(x_ab: complex, theta: float) -> complex:

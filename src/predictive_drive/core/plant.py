@@ -19,7 +19,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .inverter import clarke, segments
+from .inverter import clarke, inverse_clarke, segments
 from .machines import Machine
 from .machines.induction import IM_STATE, InductionCoefficients, InductionMotor, induction_exact
 from .machines.pmsm import PMSM, PMSM_STATE, PMSMCoefficients, pmsm_rk4
@@ -31,7 +31,6 @@ __all__ = ["PLANTS", "InductionPlant", "InverterPlant", "PMSMPlant", "make_plant
 
 Dynamics = Callable[[float, Any, Any, Any], Any]
 TWO_PI = 2.0 * math.pi
-HALF_SQRT3 = 0.5 * math.sqrt(3.0)
 #: what the inverter does before the first command acts (actuation delay): every phase low
 ALL_LOW = PhasePulses(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _K = COMMAND_INDEX.k
@@ -217,7 +216,7 @@ class InverterPlant:
                 spans.append((e, min(end, 1.0)))
                 carry[leg] = max(carry[leg], end - 1.0)
             windows.append(spans)
-            cuts.update(e for e in edges)
+            cuts.update(edges)
             cuts.update(b for _, b in spans if b < 1.0)
         ts, u_dc, drop = self.ts, self.u_dc, self._drop
         t = self.k * ts
@@ -227,12 +226,7 @@ class InverterPlant:
         points = sorted(cuts)
         for t0, t1 in zip(points, points[1:]):
             mid = 0.5 * (t0 + t1)
-            i = self._i_ab(x)
-            currents = (
-                i.real,
-                -0.5 * i.real + HALF_SQRT3 * i.imag,
-                -0.5 * i.real - HALF_SQRT3 * i.imag,
-            )
+            currents = inverse_clarke(self._i_ab(x))
             legs = []
             for leg in range(3):
                 cur = currents[leg]

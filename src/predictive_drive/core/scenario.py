@@ -119,11 +119,6 @@ class PlantParams:
             )
 
     @property
-    def ideal(self) -> bool:
-        """No delay, no dead time or drops, exact sensors: the papers' drive."""
-        return not (self.actuation_delay_steps or self.dead_time or self.device_drop or self.sensed)
-
-    @property
     def sensed(self) -> bool:
         """Any sensor that is not exact."""
         return bool(self.current_noise or self.current_adc_bits or self.encoder_lines)

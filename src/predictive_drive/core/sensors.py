@@ -18,6 +18,8 @@ from collections import deque
 
 import numpy as np
 
+from .inverter import inverse_clarke
+
 __all__ = ["Sensors"]
 
 TWO_PI = 2.0 * math.pi
@@ -62,8 +64,8 @@ class Sensors:
     ) -> tuple[float, float, float, float]:
         """The measured (i_α, i_β, ω_m, θ_e wrapped) of the true current, shaft angle and speed."""
         if self.noise or self.lsb:
-            i_a = self._adc(i_ab.real)
-            i_b = self._adc(-0.5 * i_ab.real + 0.5 * SQRT3 * i_ab.imag)
+            a, b, _ = inverse_clarke(i_ab)
+            i_a, i_b = self._adc(a), self._adc(b)
             i_alpha, i_beta = i_a, (i_a + 2.0 * i_b) / SQRT3
         else:
             i_alpha, i_beta = i_ab.real, i_ab.imag

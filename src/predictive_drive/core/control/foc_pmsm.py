@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from ...errors import ConfigError
 from ..fields import check_fields, choice, quantity
-from ..inverter import clarke, inverse_park, park
+from ..inverter import clarke, inverse_clarke, inverse_park, park
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Command, PhasePulses, Reference, State
@@ -228,10 +228,7 @@ class FOCController(Controller):
         """The dead-time and drop feed-forward (αβ, V): each phase's voltage raised by what the
         inverter loses in the direction of its current (docs/physics.md#dead-time-and-device-drops)."""
         v = self._ff_time * state.u_dc + self._ff_drop
-        a = state.i_alpha
-        b = -0.5 * a + 0.5 * math.sqrt(3.0) * state.i_beta
-        c = -a - b
-        sign = [(x > 0.0) - (x < 0.0) for x in (a, b, c)]
+        sign = [(x > 0.0) - (x < 0.0) for x in inverse_clarke(complex(state.i_alpha, state.i_beta))]
         return clarke(sign[0] * v, sign[1] * v, sign[2] * v)
 
     def _observe(self, state: State) -> None:
