@@ -50,6 +50,8 @@ def same_rows(a, b) -> None:
 def test_the_grid_is_the_cartesian_product_of_strategies_and_settings():
     sets = [parse_set("a.b=1,2e-3"), parse_set("c.d=*0.7,*1.3,x")]
     assert sets == [("a.b", [1, 0.002]), ("c.d", ["*0.7", "*1.3", "x"])]
+    # a list is one value: its commas are inside brackets
+    assert parse_set("w=[1.0, 1.45],[0.2,0.5]") == ("w", [[1.0, 1.45], [0.2, 0.5]])
     cases = grid(["s1", "s2"], sets)
     assert len(cases) == 2 * 2 * 3
     assert cases[0] == Case("s1", {"a.b": 1, "c.d": "*0.7"})

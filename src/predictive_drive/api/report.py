@@ -67,7 +67,8 @@ def metrics_of(trace: Trace, sc: Scenario) -> Metrics:
     thd = sc.logger.thd_window
     if thd and thd[1] > trace.steps * trace.ts:
         thd = ()  # a run (or a cut recording) that ends before the THD window: no THD
-    return compute_metrics(trace, t_start=start, t_end=end, thd_window=thd)
+    slips = sc.machine is Machine.INDUCTION
+    return compute_metrics(trace, t_start=start, t_end=end, thd_window=thd, slips=slips)
 
 
 def _window_note(trace: Trace, sc: Scenario) -> str:

@@ -1,6 +1,7 @@
 """``predictive-drive reproduce``: every row of a paper's table run again (in parallel across the
 cores), our figures beside the paper's (:mod:`predictive_drive.reports.papers`); and the MTPA
-studies, every strategy at every load step with and without parameter mismatch."""
+studies, every strategy at every load step with and without parameter mismatch; and the realism
+study, the papers' strategies on a drive with computation delay, dead time and sensors."""
 
 from __future__ import annotations
 
@@ -16,13 +17,28 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import check_new_bag
-from ..config import load_scenario, scenario_with
+from ..config import (
+    apply_settings,
+    load_scenario,
+    load_scenario_text,
+    resolve_scenario_path,
+    scenario_with,
+)
 from ..core.analysis import load_steps
 from ..core.control.mtpa import mtpa_point
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError, PredictiveDriveError
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, Column, MTPAStudy
+from ..reports.realism import (
+    CONDITIONS,
+    HARDWARE_KEYS,
+    RANKED,
+    REALISM,
+    SHOWN,
+    STUDY_KEY,
+    condition_settings,
+)
 from .compare import compare
 from .controller_replay import controller_replay
 from .report import evaluate
@@ -34,11 +50,17 @@ __all__ = [
     "MTPARow",
     "MTPAStudyResult",
     "PaperTableResult",
+    "RealismCell",
+    "RealismResult",
     "Reproduction",
     "TableRow",
     "mtpa_steps",
     "reproduce",
+    "reproduce_realism",
 ]
+
+#: the named study that is neither a paper's table nor an MTPA study
+REALISM_STUDY = "realism"
 
 #: the figures of a table row, by metric key (:data:`~..core.metrics.METRICS`)
 TABLE_FIGURES = (
@@ -179,6 +201,55 @@ class MTPAStudyResult(Reproduction):
         return out
 
 
+@dataclass(frozen=True)
+class RealismCell:
+    """One run of the realism study: a strategy of a scenario under one column's conditions,
+    its figures (:data:`~..reports.realism.SHOWN`, by metric key) and its rank among the
+    scenario's strategies in that column by each of :data:`~..reports.realism.RANKED` (1 =
+    lowest; None where the figure is not a number)."""
+
+    scenario: str
+    strategy: str
+    condition: str
+    settings: dict[str, Any]
+    figures: dict[str, float]
+    rank: dict[str, int | None]
+    wall_s: float
+
+
+@dataclass(frozen=True)
+class RealismResult(Reproduction):
+    """``reproduce realism``: every scenario's strategies under every column's conditions. The
+    real drive's settings per scenario are in ``hardware``, the study's own per scenario in
+    ``scenario_settings``."""
+
+    conditions: tuple[str, ...]
+    strategies: dict[str, tuple[str, ...]]
+    hardware: dict[str, dict[str, Any]]
+    scenario_settings: dict[str, dict[str, Any]]
+    cells: list[RealismCell]
+    figures: list[Path] = field(default_factory=list)
+
+    def cell(self, scenario: str, strategy: str, condition: str) -> RealismCell:
+        for c in self.cells:
+            if (c.scenario, c.strategy, c.condition) == (scenario, strategy, condition):
+                return c
+        raise KeyError((scenario, strategy, condition))
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {
+            **self.head(),
+            "conditions": list(self.conditions),
+            "strategies": {k: list(v) for k, v in self.strategies.items()},
+            "hardware": self.hardware,
+            "scenario_settings": self.scenario_settings,
+            "cells": [dataclasses.asdict(c) for c in self.cells],
+        }
+        if self.figures:
+            out["figures"] = [str(p) for p in self.figures]
+        return out
+
+
 def _runs(
     scenario: str,
     cases: Sequence[Case],
@@ -247,13 +318,30 @@ def reproduce(
     duration: float | None = None,
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
-) -> PaperTableResult | MTPAStudyResult:
+    scheduler: str | None = None,
+) -> PaperTableResult | MTPAStudyResult | RealismResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
-    our figures beside the paper's, or run an MTPA study. ``duration`` shortens every run (a
-    quick look; the figures then do not compare with the paper's). ``figures``: a folder for
-    the runs drawn overlaid (PNG). ``settings``: scenario settings applied to every run (e.g.
-    ``{"speed_pi.speed_loop": "immediate"}``), besides each row's own."""
+    our figures beside the paper's, or run an MTPA study, or the realism study
+    (:func:`reproduce_realism`, the one that runs on a Dask cluster at ``scheduler`` too).
+    ``duration`` shortens every run (a quick look; the figures then do not compare with the
+    paper's). ``figures``: a folder for the runs drawn overlaid (PNG). ``settings``: scenario
+    settings applied to every run (e.g. ``{"speed_pi.speed_loop": "immediate"}``), besides each
+    row's own."""
     settings = dict(settings or {})
+    if scenario == REALISM_STUDY:
+        if engine != "inprocess":
+            raise ConfigError(
+                f"reproduce realism runs as a sweep (in-process, on the local cores or a Dask "
+                f"cluster), not on the {engine} engine: every engine gives the same figures"
+            )
+        return reproduce_realism(
+            duration=duration, jobs=jobs, scheduler=scheduler, figures=figures, settings=settings
+        )
+    if scheduler is not None:
+        raise ConfigError(
+            f"reproduce {scenario}: a Dask scheduler serves the realism study only (the "
+            f"tables' bags are drawn and timed here)"
+        )
     if scenario in MTPA_STUDIES:
         study = reproduce_mtpa(
             scenario,
@@ -270,8 +358,8 @@ def reproduce(
         return dataclasses.replace(study, figures=compare(bags, figures=figures).figures)
     if scenario not in PAPER_TABLES:
         raise ConfigError(
-            f"reproduce: no paper table for {scenario!r}; available: "
-            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES])}"
+            f"reproduce: no paper table or study {scenario!r}; available: "
+            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY])}"
         )
     table = PAPER_TABLES[scenario]
     stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"
@@ -439,3 +527,121 @@ def _check_claims(study: MTPAStudy, rows: list[MTPARow]) -> list[MTPAClaim]:
             )
         )
     return out
+
+
+def _checked(scenario: str, cases: Sequence[Case]) -> None:
+    """Every case's scenario is valid: a bad setting is refused before anything runs, naming
+    the key and what it may be."""
+    path = resolve_scenario_path(scenario)
+    text = path.read_text(encoding="utf-8")
+    seen: set[str] = set()
+    for c in cases:
+        tag = repr(sorted(c.settings.items()))
+        if tag in seen:
+            continue
+        seen.add(tag)
+        where = f"{path} with " + ", ".join(f"{k}={v}" for k, v in c.settings.items())
+        load_scenario_text(apply_settings(text, c.settings, path), where)
+
+
+def _ranks(values: dict[str, float]) -> dict[str, int | None]:
+    """Each strategy's place by its figure, lowest first (1); None for a figure that is not a
+    number. Equal figures share a place."""
+    finite = sorted(v for v in values.values() if math.isfinite(v))
+    return {s: (finite.index(v) + 1 if math.isfinite(v) else None) for s, v in values.items()}
+
+
+_REALISM_HOW = (
+    "the columns add, left to right: one period of computation delay (the command for step k "
+    "acts during period k+1); its compensation (the state at k+1 predicted with the command in "
+    "force, the decision made on it); inverter dead time and device drops; the sensors (noise "
+    "and ADC rounding of two phase currents, encoder angle, speed over a window). MPTC has no "
+    "dead-time compensation. T_RMSE/psi_RMSE of the true torque and flux against the references "
+    "over the scenario's window; THD of the true phase-a current over the THD window; f_sw "
+    "turn-on events per device per second. Rank: place among the scenario's strategies in that "
+    "column, lowest first."
+)
+
+
+def reproduce_realism(
+    *,
+    duration: float | None = None,
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    figures: str | Path | None = None,
+    settings: dict[str, Any] | None = None,
+) -> RealismResult:
+    """The realism study (:mod:`predictive_drive.reports.realism`): every strategy of paper
+    000's induction motor and paper 001's IPMSM, ideal and under each column's conditions, run as
+    a sweep on the local cores or the Dask cluster at ``scheduler``. ``settings`` of the real
+    drive's keys (:data:`~..reports.realism.HARDWARE_KEYS`) replace the study's values in the
+    columns that have them; any other applies to every run."""
+    settings = dict(settings or {})
+    if STUDY_KEY in settings:
+        raise ConfigError(
+            f"--set {STUDY_KEY}: the realism study sets it itself (false in the 'delay' "
+            f"column, true from 'compensated' on)"
+        )
+    overrides = {k: v for k, v in settings.items() if k in HARDWARE_KEYS}
+    common = {k: v for k, v in settings.items() if k not in HARDWARE_KEYS}
+    plans = []
+    for name, study in REALISM.items():
+        hardware = {**study.hardware, **overrides}
+        cases, where = [], []
+        for strategy in study.strategies:
+            for condition, cs in condition_settings(hardware):
+                cases.append(Case(strategy, {**study.settings, **common, **cs}))
+                where.append(condition)
+        _checked(name, cases)
+        plans.append((name, hardware, cases, where))
+    cells, engine = [], ""
+    for name, _, cases, where in plans:
+        swept = run_cases(name, cases, duration=duration, scheduler=scheduler, jobs=jobs)
+        if swept.interrupted:
+            raise KeyboardInterrupt
+        engine = swept.engine
+        runs: list[tuple[Row, str, dict[str, float]]] = []
+        for row, condition in zip(swept.rows, where):
+            if row.error or row.metrics is None:
+                raise PredictiveDriveError(
+                    f"reproduce realism: the run {name} {row.strategy} ({condition}) failed: "
+                    f"{row.error}"
+                )
+            runs.append((row, condition, {k: float(getattr(row.metrics, k)) for k in SHOWN}))
+        ranks: dict[tuple[str, str], dict[str, int | None]] = {}
+        for condition in CONDITIONS:
+            column = [(r.strategy, f) for r, c, f in runs if c == condition]
+            for key in RANKED:
+                for strategy, place in _ranks({s: f[key] for s, f in column}).items():
+                    ranks.setdefault((strategy, condition), {})[key] = place
+        cells += [
+            RealismCell(name, r.strategy, c, r.settings, f, ranks[(r.strategy, c)], r.wall_s)
+            for r, c, f in runs
+        ]
+    out = RealismResult(
+        scenario=REALISM_STUDY,
+        engine=engine,
+        duration=duration,
+        settings=settings,
+        paper="the papers' strategies on a drive as real drives are: computation delay, "
+        "dead time, sensors",
+        how=_REALISM_HOW,
+        conditions=CONDITIONS,
+        strategies={n: s.strategies for n, s in REALISM.items()},
+        hardware={n: h for n, h, _, _ in plans},
+        scenario_settings={n: {**s.settings, **common} for n, s in REALISM.items()},
+        cells=cells,
+    )
+    if figures is None:
+        return out
+    from ..reports.figures import realism_figures, save
+
+    table = {
+        n: {
+            s: {k: [out.cell(n, s, c).figures[k] for c in CONDITIONS] for k in SHOWN}
+            for s in strategies
+        }
+        for n, strategies in out.strategies.items()
+    }
+    drawn = save(realism_figures(table, CONDITIONS), figures, prefix="realism_")
+    return dataclasses.replace(out, figures=drawn)

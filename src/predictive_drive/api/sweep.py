@@ -111,16 +111,28 @@ class SweepResult:
         }
 
 
+def _split_values(values: str) -> list[str]:
+    """``V1,V2,…`` split at the commas outside brackets: a list value (``[0.8,1.4]``) is one."""
+    out, depth, start = [], 0, 0
+    for i, ch in enumerate(values):
+        depth += (ch == "[") - (ch == "]")
+        if ch == "," and depth == 0:
+            out.append(values[start:i])
+            start = i + 1
+    return [*out, values[start:]]
+
+
 def parse_set(text: str) -> tuple[str, list[Any]]:
     """``KEY=V1,V2,…`` → (key, values); values read as a parameter file reads them (``5e-5``
-    is a number), ``*f`` kept as a factor. ConfigError names what is wrong."""
+    is a number, ``[0.8,1.4]`` a list), ``*f`` kept as a factor. ConfigError names what is
+    wrong."""
     key, sep, values = text.partition("=")
     if not sep or not key.strip() or not values.strip():
         raise ConfigError(
             f"--set {text!r}: expected KEY=V1,V2,... (e.g. torque_controller.lambda_psi=0,50)"
         )
     out: list[Any] = []
-    for v in values.split(","):
+    for v in _split_values(values):
         v = v.strip()
         if not v:
             raise ConfigError(f"--set {text!r}: an empty value")

@@ -1,19 +1,28 @@
-"""``predictive-drive reproduce SCENARIO``: a paper's table, or an MTPA study, run again."""
+"""``predictive-drive reproduce SCENARIO``: a paper's table, or an MTPA study, run again; or the
+realism study."""
 
 from __future__ import annotations
 
 import argparse
 
-from ..api.reproduce import MTPAStudyResult, PaperTableResult, reproduce
+from ..api.reproduce import (
+    REALISM_STUDY,
+    MTPAStudyResult,
+    PaperTableResult,
+    RealismResult,
+    reproduce,
+)
 from ..api.run import ENGINES
+from ..core.metrics import METRICS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
+from ..reports.realism import RANKED, SHOWN
 from .common import refuse, say_json, single_settings
 
-HELP = "a paper's table side by side with our figures (or an MTPA study)"
+HELP = "a paper's table side by side with our figures (or an MTPA study, or the realism study)"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES]))
+    p.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY]))
     p.add_argument("--engine", default="inprocess", choices=ENGINES)
     p.add_argument(
         "--repeats", type=int, help="timing repeats for the compute ratios (median; default 5; "
@@ -27,14 +36,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--set",
         action="append",
         metavar="KEY=VALUE",
-        help="a scenario setting for every run, e.g. speed_pi.speed_loop=immediate (repeatable)",
+        help="a scenario setting for every run, e.g. speed_pi.speed_loop=immediate (repeatable); "
+        "for realism, a setting of the real drive (plant.dead_time, ...) replaces the study's "
+        "in the columns that have it",
     )
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="realism only: run on this Dask cluster "
+        "(e.g. tcp://host:8786) instead of the local cores",
+    )  # fmt: skip
 
 
 def main(a: argparse.Namespace) -> int:
     table = PAPER_TABLES.get(a.scenario)
     if table is None or not table.compute_ratios:
         refuse(a, f"times the compute ratios, which {a.scenario} has none of", "repeats")
+    if a.scenario != REALISM_STUDY:
+        refuse(a, f"serves the realism study only, not {a.scenario}", "scheduler")
     settings = single_settings(a.set)
     d = reproduce(
         a.scenario,
@@ -43,11 +60,14 @@ def main(a: argparse.Namespace) -> int:
         duration=a.duration,
         figures=a.figures,
         settings=settings,
+        scheduler=a.scheduler,
     )
     if a.json:
         return say_json(d)
     if isinstance(d, MTPAStudyResult):
         print_mtpa(d)
+    elif isinstance(d, RealismResult):
+        print_realism(d)
     else:
         print_table(d)
     for f in d.figures:
@@ -55,7 +75,7 @@ def main(a: argparse.Namespace) -> int:
     return 0
 
 
-def _settings(d: PaperTableResult | MTPAStudyResult) -> None:
+def _settings(d: PaperTableResult | MTPAStudyResult | RealismResult) -> None:
     if d.duration is not None:
         print(f"NOTE: runs shortened to {d.duration:g} s; not comparable with the paper")
     if d.settings:
@@ -108,4 +128,34 @@ def print_mtpa(d: MTPAStudyResult) -> None:
             f"possible, resolution {100 * c.resolution:.3f} % ({c.less_current_than_zero_d}:"
             f" less current than i_d = 0)"
         )
+    print(f"How computed: {d.how}")
+
+
+def print_realism(d: RealismResult) -> None:
+    print(f"{d.scenario}: {d.paper}  ({d.engine})")
+    _settings(d)
+    for scenario, strategies in d.strategies.items():
+        print()
+        print(f"{scenario}: " + ", ".join(f"{k} = {v}" for k, v in d.hardware[scenario].items()))
+        if d.scenario_settings[scenario]:
+            print(
+                "  and every run with "
+                + ", ".join(f"{k} = {v}" for k, v in d.scenario_settings[scenario].items())
+            )
+        width = max(14, *(len(s) for s in strategies)) + 1
+        for key in SHOWN:
+            metric = METRICS[key]
+            ranked = key in RANKED
+            head = metric.heading + (" (rank)" if ranked else "")
+            print(f"{head:<{width}}" + "".join(f" {c:>15}" for c in d.conditions))
+            for s in strategies:
+                line = f"  {s:<{width - 2}}"
+                for c in d.conditions:
+                    cell = d.cell(scenario, s, c)
+                    text = metric.format(cell.figures[key])
+                    place = cell.rank.get(key)
+                    if ranked and place is not None:
+                        text += f" ({place})"
+                    line += f" {text:>15}"
+                print(line)
     print(f"How computed: {d.how}")

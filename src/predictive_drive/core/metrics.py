@@ -211,12 +211,20 @@ class Spectrum:
         return float(np.sqrt(np.sum(a[2 * self.cycles :: self.cycles] ** 2)) / a[self.cycles])
 
 
-def phase_a_spectrum(trace: Trace, t_start: float, t_end: float) -> Spectrum:
+def phase_a_spectrum(
+    trace: Trace, t_start: float, t_end: float, *, slips: bool = False
+) -> Spectrum:
     """Spectrum of i_a (= i_α, amplitude-invariant Clarke) over the whole electrical cycles that fit
-    in [t_start, t_end): the cycles are counted on the unwrapped rotor angle θ_e, so the window
-    holds an integer number of fundamental periods (no leakage at steady speed)."""
+    in [t_start, t_end): the cycles are counted on the unwrapped angle of the fundamental, so the
+    window holds an integer number of its periods (no leakage at steady speed). That angle is the
+    rotor's electrical angle θ_e for a synchronous machine; an induction motor's currents turn
+    faster or slower than its rotor by the slip (``slips``), so there it is the stator flux's."""
     k0, k1 = step_window(trace, t_start, t_end)
-    theta = np.unwrap(trace.truth("theta_e")[k0 : k1 + 1])
+    if slips:
+        psi = trace.col("state", "psi_alpha") + 1j * trace.col("state", "psi_beta")
+        theta = np.unwrap(np.angle(psi[k0 : k1 + 1]))
+    else:
+        theta = np.unwrap(trace.truth("theta_e")[k0 : k1 + 1])
     turned = np.abs(theta - theta[0])
     cycles = int(turned[-1] // (2.0 * math.pi))
     if cycles < 1:
@@ -237,7 +245,10 @@ def compute_metrics(
     t_start: float = 0.0,
     t_end: float = math.inf,
     thd_window: tuple[float, ...] = (),
+    slips: bool = False,
 ) -> Metrics:
+    """A run's figures over [t_start, t_end); the THD over ``thd_window`` (``slips``: an
+    induction motor's, see :func:`phase_a_spectrum`)."""
     k0, k1 = step_window(trace, t_start, t_end)
     n = k1 - k0
     te = trace.col("state", "torque")[k0:k1]
@@ -276,7 +287,7 @@ def compute_metrics(
     )
     if not thd_window:
         return m
-    sp = phase_a_spectrum(trace, thd_window[0], thd_window[1])
+    sp = phase_a_spectrum(trace, thd_window[0], thd_window[1], slips=slips)
     return dataclasses.replace(
         m,
         thd=sp.thd,

@@ -17,12 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from ..core.machines import Machine
 from ..core.metrics import METRICS, phase_a_spectrum
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
 
-__all__ = ["Run", "compare_figures", "run_figures", "save", "sweep_figures"]
+__all__ = ["Run", "compare_figures", "realism_figures", "run_figures", "save", "sweep_figures"]
 
 RPM = 60.0 / (2.0 * math.pi)
 
@@ -130,7 +131,9 @@ def run_figures(run: Run) -> dict[str, Any]:
     ax.set(xlabel="t / s", ylabel="i_a / A", title=f"{run.label}: phase-a current")
     window = sc.logger.thd_window or steady_window(tr, sc)
     try:
-        sp = phase_a_spectrum(tr, window[0], min(window[1], tr.steps * tr.ts))
+        sp = phase_a_spectrum(
+            tr, window[0], min(window[1], tr.steps * tr.ts), slips=sc.machine is Machine.INDUCTION
+        )
         freq = np.arange(sp.amplitude.size) / sp.period
         sx.plot(freq, sp.amplitude, linewidth=0.6)
         sx.set_xscale("symlog", linthresh=max(freq[1], 1.0) if freq.size > 1 else 1.0)
@@ -252,6 +255,42 @@ def sweep_figures(rows: Sequence[Any], keys: Sequence[str]) -> dict[str, Any]:
         axes[0].legend(fontsize=7)
         fig.tight_layout()
         figs[f"sweep_{key.replace('.', '_')}"] = fig
+    return figs
+
+
+def realism_figures(
+    table: dict[str, dict[str, dict[str, list[float]]]], conditions: Sequence[str]
+) -> dict[str, Any]:
+    """The realism study, one figure per scenario: a panel per metric, each strategy's figure
+    under every column's conditions (``table[scenario][strategy][metric]``, one value per
+    condition); a metric with no number in a scenario is left out."""
+    plt = _pyplot()
+    figs: dict[str, Any] = {}
+    x = np.arange(len(conditions))
+    for scenario, by_strategy in table.items():
+        keys = list(dict.fromkeys(k for v in by_strategy.values() for k in v))
+        keys = [k for k in keys if any(np.isfinite(v[k]).any() for v in by_strategy.values())]
+        if not keys:
+            continue
+        fig, axes = plt.subplots(len(keys), 1, figsize=(7, 2.2 * len(keys)), sharex=True)
+        axes = np.atleast_1d(axes)
+        width = 0.8 / max(1, len(by_strategy))
+        for ax, key in zip(axes, keys):
+            shown = METRICS[key]
+            for j, (strategy, values) in enumerate(by_strategy.items()):
+                ax.bar(
+                    x + (j - (len(by_strategy) - 1) / 2) * width,
+                    [shown.scale * v for v in values[key]],
+                    width,
+                    label=strategy,
+                )
+            ax.set_ylabel(shown.axis)
+            ax.grid(True, axis="y", alpha=0.3)
+        axes[-1].set_xticks(x, list(conditions))
+        axes[0].set_title(scenario)
+        axes[0].legend(fontsize=7)
+        fig.tight_layout()
+        figs[scenario] = fig
     return figs
 
 
