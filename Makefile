@@ -19,8 +19,8 @@ run: setup
 	$(VENV)/bin/predictive-drive run im_paper --strategy db_mptc
 
 test: setup
-	$(VENV)/bin/ruff check src test
-	$(VENV)/bin/ruff format --check src test
+	$(VENV)/bin/ruff check src test examples
+	$(VENV)/bin/ruff format --check src test examples
 	$(VENV)/bin/mypy --strict src/predictive_drive
 	$(PY) -m pytest -q test
 

@@ -37,3 +37,34 @@ def colcon_built(tmp_path_factory):
 def wheel_installed(tmp_path_factory):
     """The package's wheel installed into a fresh venv (once per test session)."""
     return wheel_install(tmp_path_factory.mktemp("wheel"))
+
+
+@pytest.fixture
+def node_in(tmp_path):
+    """``node_in(cls, scenario)``: a node built in this process from a scenario file, in its own
+    Context; destroyed (and the Context shut down) in teardown."""
+    import rclpy
+    from rclpy.context import Context
+
+    from predictive_drive.config import resolve_scenario_path
+
+    made = []
+
+    def make(cls, scenario):
+        ctx = Context()
+        args = ["--ros-args", "--params-file", str(resolve_scenario_path(scenario))]
+        args += ["-p", f"bag:={tmp_path / 'bag'}"]  # the logger's
+        rclpy.init(context=ctx, args=args)
+        made.append(ctx)
+        node = cls(context=ctx)
+        made.append(node)
+        return node
+
+    yield make
+    for obj in reversed(made):
+        if hasattr(obj, "destroy_node"):
+            if hasattr(obj, "close"):
+                obj.close()
+            obj.destroy_node()
+        else:
+            rclpy.try_shutdown(context=obj)

@@ -42,6 +42,15 @@ REFUSED = [
     (["reproduce", "im_paper", "--repeats", "3"], "--repeats times the compute ratios"),
     (["sweep", "im_short", "--scheduler", "tcp://x:1", "--jobs", "2"], "--jobs sets the local"),
     (["bench", "--quick", "--steps", "100"], "--steps sets what --quick sets already"),
+    (["run", "im_short", "--engine", "inprocess", "--external", "torque_controller=x"],
+     "--external runs your node as a process of its own: --engine ros, not inprocess"),
+    (["run", "im_short", "--external", "plant=x"],
+     "--external plant: not a node you can replace; one of torque_controller, speed_pi"),
+    (["run", "im_short", "--strategy", "mptc", "--external", "torque_controller=x"],
+     "so --strategy and --switch do not apply"),
+    (["run", "im_short", "--external", "torque_controller= "], "an empty command"),
+    (["reproduce", "im_paper", "--scheduler", "tcp://x:1"],
+     "--scheduler serves the realism study only"),
 ]  # fmt: skip
 
 

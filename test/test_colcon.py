@@ -117,6 +117,7 @@ def test_the_launch_file_starts_the_graph_the_launcher_starts():
     launcher's graph: the same nodes, executables, namespace, scenario file and strategy."""
     from dataclasses import fields
 
+    from predictive_drive.core.signals import EXTERNAL
     from predictive_drive.interface import NAMESPACE
     from predictive_drive.ros.launcher import START_ORDER
     from predictive_drive.ros.metrics_logger_node import RecordingParams
@@ -135,7 +136,7 @@ def test_the_launch_file_starts_the_graph_the_launcher_starts():
         overrides = {p.get("name"): p.get("value") for p in params[1:]}
         if n.get("name") == "metrics_logger":
             assert overrides.pop("live_port") == "$(var live_port)"
-        if n.get("unless"):  # the variant used when a strategy is given
+        if n.get("unless") or "not in" in (n.get("if") or ""):  # when a strategy is given
             assert overrides == {"strategy": "$(var strategy)"}
             assert n.get("name") in ("torque_controller", "metrics_logger")
         else:
@@ -145,11 +146,19 @@ def test_the_launch_file_starts_the_graph_the_launcher_starts():
             assert {"strategy", "live_port"} <= {f.name for f in fields(RecordingParams)}
     (let,) = root.findall("let")
     assert let.get("value") == "$(find-pkg-share predictive_drive)/config/$(var scenario).yaml"
-    # each conditional node comes as a pair that covers both cases exactly once
-    for name in ("torque_controller", "metrics_logger"):
-        pair = [n for n in nodes if n.get("name") == name]
-        assert sorted(bool(n.get("if")) for n in pair) == [False, True]
-        assert pair[0].get("if") == pair[1].get("unless")
+    # each conditional node comes as a pair that covers both cases exactly once; the torque
+    # controller's second case leaves out a controller of the user's own
+    empty = "$(eval '\\'$(var strategy)\\' == \\'\\'')"
+    given = "$(eval '\\'$(var strategy)\\' not in (\\'\\', \\'external:torque_controller\\')')"
+    logger = [n for n in nodes if n.get("name") == "metrics_logger"]
+    assert sorted(((n.get("if"), n.get("unless")) for n in logger), key=str) == sorted(
+        [(empty, None), (None, empty)], key=str
+    )
+    controller = [n for n in nodes if n.get("name") == "torque_controller"]
+    assert sorted(((n.get("if"), n.get("unless")) for n in controller), key=str) == sorted(
+        [(empty, None), (given, None)], key=str
+    )
+    assert "not in" not in empty and EXTERNAL in given
 
 
 # rosdep keys as rosdistro's rosdep/python.yaml defines them (checked against ros/rosdistro

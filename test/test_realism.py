@@ -168,8 +168,6 @@ def test_the_command_prints_every_column_with_its_ranks(capsys, tmp_path, monkey
     assert all(c in head for c in CONDITIONS)
     assert "plant.encoder_lines = 32768" in out and "plant.encoder_lines = 2500" in out
     assert not list(tmp_path.iterdir())  # the study records no bags
-    assert cli.main(["reproduce", "im_paper", "--scheduler", "tcp://x:1", "--json"]) == 2
-    assert "--scheduler serves the realism study only" in capsys.readouterr().err
 
 
 @pytest.mark.process

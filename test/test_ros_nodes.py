@@ -67,37 +67,6 @@ def test_controller_node_rejects_a_strategy_of_another_family():
         rclpy.try_shutdown(context=ctx)
 
 
-@pytest.fixture
-def node_in(tmp_path):
-    """``node_in(cls, scenario)``: a node built in this process from a scenario file, in its own
-    Context; destroyed (and the Context shut down) in teardown."""
-    import rclpy
-    from rclpy.context import Context
-
-    from predictive_drive.config import resolve_scenario_path
-
-    made = []
-
-    def make(cls, scenario):
-        ctx = Context()
-        args = ["--ros-args", "--params-file", str(resolve_scenario_path(scenario))]
-        args += ["-p", f"bag:={tmp_path / 'bag'}"]  # the logger's
-        rclpy.init(context=ctx, args=args)
-        made.append(ctx)
-        node = cls(context=ctx)
-        made.append(node)
-        return node
-
-    yield make
-    for obj in reversed(made):
-        if hasattr(obj, "destroy_node"):
-            if hasattr(obj, "close"):
-                obj.close()
-            obj.destroy_node()
-        else:
-            rclpy.try_shutdown(context=obj)
-
-
 def _descriptors(node):
     names = sorted(node._parameters)
     return dict(zip(names, node.describe_parameters(names)))

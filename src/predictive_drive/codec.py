@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
+from .core.commands import FORMS, CommandError, command_from
 from .errors import BagError
 from .interface import RECORD_TOPICS, TOPICS
 
@@ -32,6 +33,7 @@ __all__ = [
     "CdrWriter",
     "MultiArrayCodec",
     "ParameterEvent",
+    "decode_command",
     "decode_multiarray",
     "decode_parameter_event",
     "diagnostics_value",
@@ -39,11 +41,14 @@ __all__ = [
     "encode_diagnostics",
     "encode_joint_state",
     "encode_parameter_event",
+    "labelled",
     "stamp",
     "stamp_ns",
     "tool_stamp_ns",
 ]
 
+#: the fields of the command forms the plant resolves to pulses
+RESOLVED = frozenset(FORMS["switching state"] + FORMS["voltage reference"])
 #: the encapsulation header: XCDR1, little endian
 HEADER = b"\x00\x01\x00\x00"
 T = TypeVar("T")
@@ -201,10 +206,8 @@ class MultiArrayCodec:
     def encode(self, values: tuple[float, ...]) -> bytes:
         return self.prefix + self._fmt.pack(*values)
 
-    def decode(self, data: bytes) -> tuple[float, ...]:
-        """Values of a message in this layout's field order. A message of exactly this layout
-        takes the fast path; another labelled layout (a recording of another version) is read
-        by field name, NaN for fields it lacks; BagError if it lacks the step or time."""
+    def exact(self, data: bytes) -> tuple[float, ...] | None:
+        """Values of a message of exactly this layout (the fast path), else None."""
         last = self._last
         if data is last[0]:
             return last[1]
@@ -212,6 +215,15 @@ class MultiArrayCodec:
             values: tuple[float, ...] = self._fmt.unpack_from(data, len(self.prefix))
             self._last = (data, values)
             return values
+        return None
+
+    def decode(self, data: bytes) -> tuple[float, ...]:
+        """Values of a message in this layout's field order. A message of exactly this layout
+        takes the fast path; another labelled layout (a recording of another version) is read
+        by field name, NaN for fields it lacks; BagError if it lacks the step or time."""
+        fast = self.exact(data)
+        if fast is not None:
+            return fast
         labels, values = decode_multiarray(data)
         by_name = dict(zip(labels, values))
         if len(labels) != len(values) or not {"k", "t"} <= set(by_name):
@@ -226,6 +238,38 @@ class MultiArrayCodec:
 CODECS: dict[str, MultiArrayCodec] = {
     key: MultiArrayCodec(TOPICS[key].fields) for key in (*RECORD_TOPICS, "recorded", "metrics")
 }
+
+
+def decode_command(data: bytes, u_dc: Callable[[], float]) -> tuple[float, ...]:
+    """A /drive/command message as a :class:`~.core.signals.Command` row, its switching as the
+    plant applies it: the built-in layout as it is; a controller's own (a switching state or a
+    voltage reference, modulated from ``u_dc()`` V) resolved to pulses
+    (:func:`~.core.commands.command_from`); one the plant would refuse (or of an older layout)
+    by field name, NaN for what it lacks."""
+    codec = CODECS["command"]
+    fast = codec.exact(data)
+    if fast is not None:
+        return fast
+    try:
+        fields = labelled(data)
+        if not set(fields).isdisjoint(RESOLVED):
+            voltage = "u_alpha" in fields or "u_beta" in fields
+            return tuple(command_from(fields, u_dc=u_dc() if voltage else math.nan))
+    except (CommandError, BagError):
+        pass
+    return codec.decode(data)
+
+
+def labelled(data: bytes) -> dict[str, float]:
+    """A labelled Float64MultiArray (one label per value) → its values by label; BagError names
+    what does not fit."""
+    labels, values = decode_multiarray(data)
+    if len(labels) != len(values) or len(set(labels)) != len(labels):
+        raise BagError(
+            f"Float64MultiArray layout: {len(values)} values under the labels "
+            f"{','.join(labels)!r} (expected one distinct label per value)"
+        )
+    return dict(zip(labels, values))
 
 
 def decode_multiarray(data: bytes) -> tuple[tuple[str, ...], tuple[float, ...]]:

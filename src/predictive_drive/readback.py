@@ -6,14 +6,23 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache, partial
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from .bag import META_NAME, load_yaml, mcap_file, not_a_recording
-from .codec import CODECS, MultiArrayCodec, ParameterEvent, decode_parameter_event
+from .codec import (
+    CODECS,
+    MultiArrayCodec,
+    ParameterEvent,
+    decode_command,
+    decode_parameter_event,
+)
+from .config import load_scenario_text
 from .core.signals import STATE_INDEX
 from .core.trace import Trace
 from .errors import BagError
@@ -84,6 +93,12 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     if META_NAME not in meta:
         raise not_a_recording(path, meta, contents.messages)
     info = meta[META_NAME]
+
+    @cache
+    def u_dc() -> float:
+        """The DC link of the run (a command of a controller's own may be a voltage)."""
+        return float(load_scenario_text(info["scenario_yaml"], path, legacy=True).plant.u_dc)
+
     by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
     tables: dict[str, np.ndarray] = {}
     counts: dict[str, int] = {}
@@ -94,8 +109,9 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
         counts[topic] = counts.get(topic, 0) + len(m)
         rec = by_name.get(topic)
         if rec is not None:
+            decode = partial(decode_command, u_dc=u_dc) if rec == "command" else None
             tables[rec] = _by_step(
-                _values(contents, m, CODECS[RECORD_TOPICS[rec]]), tables.get(rec)
+                _values(contents, m, CODECS[RECORD_TOPICS[rec]], decode), tables.get(rec)
             )
         elif topic == TOPICS["parameter_events"].name:
             events += [
@@ -125,9 +141,15 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     return trace, BagInfo(path, info, counts, contents.complete, custom, tuple(events))
 
 
-def _values(contents: McapContents, m: Messages, codec: MultiArrayCodec) -> np.ndarray:
+def _values(
+    contents: McapContents,
+    m: Messages,
+    codec: MultiArrayCodec,
+    decode: Callable[[bytes], tuple[float, ...]] | None = None,
+) -> np.ndarray:
     """(n, fields) values of a per-step topic's messages: of this layout in one gather, of
-    another (a recording of another version) one by one by field name."""
+    another (a recording of another version, a controller of one's own) one by one with
+    ``decode`` (default: by field name)."""
     width = len(codec.fields)
     if all(n == codec.size for n in m.lengths):
         raw = m.payloads(contents.data, codec.size)
@@ -135,7 +157,8 @@ def _values(contents: McapContents, m: Messages, codec: MultiArrayCodec) -> np.n
         if (raw[:, : len(prefix)] == prefix).all():
             values = raw[:, len(prefix) :].copy().view("<f8")
             return values.reshape(len(m), width)
-    rows = [codec.decode(contents.payload(m, i)) for i in range(len(m))]
+    one = decode or codec.decode
+    rows = [one(contents.payload(m, i)) for i in range(len(m))]
     return np.array(rows, dtype=np.float64).reshape(len(m), width)
 
 

@@ -38,7 +38,8 @@ from .codec import (
     tool_stamp_ns,
 )
 from .config import load_scenario_text
-from .core.control import strategy_names
+from .core.commands import COMMAND_CONTRACT
+from .core.control import EXTERNAL, strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
 from .core.signals import COMMAND_INDEX, STATE_INDEX
@@ -77,6 +78,8 @@ def bag_info(sc: Scenario, engine: str) -> dict[str, Any]:
         "ts": repr(sc.ts),
         "engine": engine,
         "strategy_names": list(strategy_names(sc.family)),
+        # a controller of the user's own: the command contract it was held to
+        **({"command_contract": str(COMMAND_CONTRACT)} if sc.strategy == EXTERNAL else {}),
     }
 
 
@@ -151,14 +154,27 @@ def strategy_spans(
 ) -> list[StrategySpan]:
     """The spans of a run's per-step strategy index (the command's ``strategy`` field)."""
     spans, k = [], k0
-    for index, steps in itertools.groupby(strategy):
+    for name, steps in itertools.groupby(strategy, key=lambda i: strategy_name(names, i)):
         n = sum(1 for _ in steps)
-        spans.append(StrategySpan(strategy_name(names, index), k, k + n - 1))
+        spans.append(StrategySpan(name, k, k + n - 1))
         k += n
     return spans
 
 
+#: the strategy index before the first span: no command's (theirs are >= 0, or NaN)
+_NO_SPAN = -1.0
+
+
+def _same_strategy(a: float, b: float) -> bool:
+    """Two commands' strategy indices name the same strategy (NaN: the user's own, both)."""
+    return a == b or (math.isnan(a) and math.isnan(b))
+
+
 def strategy_name(names: tuple[str, ...], index: float) -> str:
+    """The strategy of a command's index; a command without one (NaN) came from a torque
+    controller of the user's own."""
+    if math.isnan(index):
+        return EXTERNAL
     return names[int(index)] if 0 <= index < len(names) else "?"
 
 
@@ -217,7 +233,7 @@ class RunRecorder:
         self._warned = ""
         self._finished = False
         self._spans: list[StrategySpan] = []  #: the last one's end is ``_through``
-        self._index = math.nan  #: the strategy index of the last span
+        self._index = _NO_SPAN  #: the strategy index of the last span
         self._through = -1
         self._batch: list[Step] = []  #: steps taken, not yet written
         keys = [RECORD_TOPICS[r] for r in ("state", "reference", "command")]
@@ -281,7 +297,9 @@ class RunRecorder:
         span), not the first of a span."""
         cmd = step[2]
         return (
-            cmd is not None and cmd[COMMAND_INDEX.strategy] == self._index and int(cmd[K]) == k_next
+            cmd is not None
+            and _same_strategy(cmd[COMMAND_INDEX.strategy], self._index)
+            and int(cmd[K]) == k_next
         )
 
     def _write_plain_steps(self, steps: list[Step]) -> None:
@@ -338,7 +356,7 @@ class RunRecorder:
             self.last_t = t
         k = int(cmd[K])
         index = cmd[COMMAND_INDEX.strategy]
-        if index == self._index and k == self._through + 1:
+        if _same_strategy(index, self._index) and k == self._through + 1:
             self._through = k
         else:
             self._span(k, index)
@@ -424,7 +442,7 @@ class RunRecorder:
     def _span(self, k: int, index: float) -> None:
         """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process
         with the parameter event the controller node would publish)."""
-        if index == self._index and k == self._through + 1:
+        if _same_strategy(index, self._index) and k == self._through + 1:
             self._through = k
             return
         self._seal()

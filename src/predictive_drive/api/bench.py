@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import shlex
+import shutil
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -29,13 +32,15 @@ def graph_rate(
     affinity: str = "paired",
     sched: str = "batch",
     speed_loop: str = "one_step",
+    external: dict[str, str | None] | None = None,
 ) -> dict[str, Any]:
     """Steps/s of a graph engine with recording on, in one run (im_paper, db_mptc): the
     least-squares slope of step against wall time over the /clock samples the launcher sees
     between 20 % and 90 % of the run (start-up and the end excluded). The launcher's /clock
     watch runs meanwhile (it costs the graph a few per cent). ``steps_per_s`` is None when the
     run gave too few samples for a slope. ``speed_loop``: the scenario's speed-loop timing
-    (``immediate``: the controller waits for the speed PI's answer to each state)."""
+    (``immediate``: the controller waits for the speed PI's answer to each state);
+    ``external``: nodes of the user's own in place of ours (``run --external``)."""
     samples: list[tuple[float, int]] = []
 
     def seen(k: int, n: int) -> None:
@@ -46,13 +51,14 @@ def graph_rate(
         settings = {} if speed_loop == "one_step" else {"speed_pi.speed_loop": speed_loop}
         r = run(
             scenario_with("im_paper", settings, Path(tmp)),
-            strategy="db_mptc",
+            strategy=None if external else "db_mptc",
             duration=duration,
             engine=engine,
             out=Path(tmp) / engine,
             affinity=affinity,
             sched=sched,
             progress=seen,
+            external=external,
         )
     n = r.steps
     mid = np.array([(t, k) for t, k in samples if 0.2 * n <= k <= 0.9 * n])
@@ -80,6 +86,8 @@ class GraphRun:
     speed_loop: str
     key: str
     what: str
+    #: the torque controller is the example of one's own (examples/dtc_im), run this long (s)
+    example_dtc: float = 0.0
 
 
 #: the graph runs of a full bench
@@ -94,10 +102,23 @@ GRAPH_RUNS = (
              "four processes, --affinity none --sched other, recording on"),
     GraphRun("composed", "none", "other", "one_step", "composed_steps_per_s",
              "one process, recording on"),
+    GraphRun("ros", "paired", "batch", "one_step", "ros_example_dtc_steps_per_s",
+             "four processes, the torque controller examples/dtc_im (a user's rclpy node, "
+             "default executor), recording on", example_dtc=0.5),
 )  # fmt: skip
 #: ``--quick``: the defaults of each engine, short runs (a smoke test of the figures, not a
 #: measurement)
-QUICK_RUNS = (GRAPH_RUNS[0], GRAPH_RUNS[-1])
+QUICK_RUNS = (GRAPH_RUNS[0], GRAPH_RUNS[-2])
+
+
+def example_dtc() -> str | None:
+    """The command of the example controller (examples/dtc_im): the source checkout's, or the
+    ``dtc_node`` a colcon build of it installed; None where neither is."""
+    node = Path(__file__).resolve().parents[3] / "examples" / "dtc_im" / "dtc_im" / "dtc_node.py"
+    if node.is_file():
+        return f"{shlex.quote(sys.executable)} {shlex.quote(str(node))}"
+    found = shutil.which("dtc_node")
+    return shlex.quote(found) if found else None
 
 
 @dataclass(frozen=True)
@@ -184,12 +205,20 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
     graph = []
     if ros:
         for g in QUICK_RUNS if quick else GRAPH_RUNS:
+            external: dict[str, str | None] | None = None
+            if g.example_dtc:
+                command = example_dtc()
+                if command is None:
+                    graph.append(GraphRate(g, None, math.nan))  # not here: no figure
+                    continue
+                external = {"torque_controller": command}
             r = graph_rate(
                 g.engine,
                 affinity=g.affinity,
                 sched=g.sched,
                 speed_loop=g.speed_loop,
-                duration=0.3 if quick else 2.0,
+                duration=0.3 if quick else g.example_dtc or 2.0,
+                external=external,
             )
             graph.append(GraphRate(g, r["steps_per_s"], r["startup_s"]))
     return Bench(

@@ -32,22 +32,28 @@ def replay(bag: str | Path, **options: Any) -> PlayResult:
 
 def replay_into(
     bag: str | Path, *, node: str = "torque_controller", strategy: str | None = None,
-    out: str | Path | None = None,
+    out: str | Path | None = None, command: str | None = None,
 ) -> StepResult:  # fmt: skip
     """Feed ``bag`` into a ``node`` process step by step (see
     :mod:`predictive_drive.ros.stepper`) and record the result; says how the new decisions agree
-    with the recorded ones, the controller's compute time and the pace."""
+    with the recorded ones, the controller's compute time and the pace. ``command``: a node of
+    the user's own to feed instead of ours (docs/ros.md#writing-your-own-controller)."""
     from ..bag import claim_bag_dir
     from ..ros.stepper import replay_into as step
 
     if node != "torque_controller":
         raise ConfigError(f"--into: {node!r}; a recording can be replayed into: torque_controller")
+    if command is not None and (not command.strip() or strategy is not None):
+        raise ConfigError(
+            f"--into {node}={command}: "
+            + ("an empty command" if not command.strip() else "your node has no --strategy")
+        )
     source = Path(bag)
     if out is None:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         out = (
             source.resolve().parent
-            / f"{source.resolve().name}_into_{strategy or 'recorded'}_{stamp}"
+            / f"{source.resolve().name}_into_{'own' if command else strategy or 'recorded'}_{stamp}"
         )
     with claim_bag_dir(out) as target:
-        return step(source, target, strategy=strategy)
+        return step(source, target, strategy=strategy, command=command)

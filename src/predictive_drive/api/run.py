@@ -6,14 +6,14 @@ import contextlib
 import math
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..bag import BagWriter, check_new_bag, claim_bag_dir
 from ..config import load_scenario, scenario_with
-from ..core.control import strategy_names
+from ..core.control import EXTERNAL, strategy_names
 from ..core.metrics import Metrics
 from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
@@ -24,7 +24,7 @@ from ..readback import bag_status
 from ..recording import RunRecorder, bag_info, default_bag_dir
 from .report import RecordingDetails, details_of, evaluate
 
-__all__ = ["ENGINES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
+__all__ = ["ENGINES", "EXTERNAL_NODES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
 
 ENGINES = ("ros", "composed", "inprocess")
 
@@ -133,6 +133,41 @@ def scenario_file(scenario: str | Path, settings: dict[str, Any] | None) -> Iter
         yield scenario_with(scenario, settings, Path(tmp))
 
 
+#: the nodes a user may replace with their own (``run --external``)
+EXTERNAL_NODES = ("torque_controller", "speed_pi")
+
+
+def _check_external(
+    external: Mapping[str, str | None],
+    engine: str,
+    strategy: str | None,
+    switches: Sequence[tuple[float, str]],
+) -> None:
+    """ConfigError for an --external that cannot be: an unknown node, an empty command, an
+    engine without separate node processes, a strategy or a switch for a controller of one's
+    own."""
+    if not external:
+        return
+    for name, command in external.items():
+        if name not in EXTERNAL_NODES:
+            raise ConfigError(
+                f"--external {name}: not a node you can replace; one of {', '.join(EXTERNAL_NODES)}"
+            )
+        if command is not None and not command.strip():
+            raise ConfigError(
+                f"--external {name}=: an empty command (leave out '=' to start it by hand)"
+            )
+    if engine != "ros":
+        raise ConfigError(
+            f"--external runs your node as a process of its own: --engine ros, not {engine}"
+        )
+    if "torque_controller" in external and (strategy is not None or switches):
+        raise ConfigError(
+            "--external torque_controller: your node is the torque controller, so --strategy and "
+            "--switch do not apply"
+        )
+
+
 def run(
     scenario: str | Path,
     *,
@@ -147,6 +182,7 @@ def run(
     sched: str = "batch",
     peer_timeout: float = 10.0,
     live: int = 0,
+    external: Mapping[str, str | None] | None = None,
 ) -> RunResult:
     """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
     ``sched``: CPU placement (``paired`` | ``none``, see
@@ -155,9 +191,15 @@ def run(
     of a ROS engine waits for a silent peer before the run fails; ``live``: a port to serve the
     running drive on to Foxglove / Lichtblick (0: none; see :mod:`predictive_drive.live`);
     ``settings``: scenario keys changed for this run (see
-    :func:`predictive_drive.config.apply_settings`)."""
+    :func:`predictive_drive.config.apply_settings`); ``external``: nodes of the user's own in
+    place of ours, by name (``torque_controller``, ``speed_pi``): the command that starts one,
+    or None to start it by hand (docs/ros.md#writing-your-own-controller)."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
+    external = dict(external or {})
+    _check_external(external, engine, strategy, switches)
+    if "torque_controller" in external:
+        strategy = EXTERNAL
     if not (math.isfinite(peer_timeout) and peer_timeout > 0):
         raise ConfigError(
             f"--peer-timeout must be a positive number of seconds, got {peer_timeout}"
@@ -198,6 +240,7 @@ def run(
                         sched=sched,
                         peer_timeout=peer_timeout,
                         live_port=live,
+                        external=external,
                     )
             except KeyboardInterrupt:
                 status = bag_status(bag).describe()

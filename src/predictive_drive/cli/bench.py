@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from ..api.bench import bench
 from .common import refuse, say_json
@@ -46,7 +47,9 @@ def main(a: argparse.Namespace) -> int:
         f"steps/s ({d.report_steps_per_s / core:.2f} x the core loop)"
     )
     for g in d.graph:
-        if g.steps_per_s is None:
+        if g.steps_per_s is None and g.run.example_dtc and math.isnan(g.startup_s):
+            print(f"{g.run.key} ({g.run.what}): no figure (examples/dtc_im is not here)")
+        elif g.steps_per_s is None:
             print(f"{g.run.key} ({g.run.what}): no figure (too few progress samples for a slope)")
         else:
             print(

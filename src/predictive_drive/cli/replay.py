@@ -48,9 +48,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     into = p.add_argument_group("replaying into a node (--into)")
     into.add_argument(
         "--into",
-        choices=["torque_controller"],
+        metavar="torque_controller[=COMMAND]",
         help="feed the recorded states and references step by step into a node of this kind "
-        "and record its new commands (deterministic replay)",
+        "and record its new commands (deterministic replay); =COMMAND: into your own node, "
+        "started by that command line (docs/ros.md, 'Writing your own controller')",
     )
     into.add_argument(
         "--strategy",
@@ -97,7 +98,10 @@ def main(a: argparse.Namespace) -> int:
 
 
 def _into(a: argparse.Namespace) -> int:
-    d = replay_into(a.bag, node=a.into, strategy=a.strategy, out=a.out)
+    node, sep, command = a.into.partition("=")
+    d = replay_into(
+        a.bag, node=node, strategy=a.strategy, out=a.out, command=command if sep else None
+    )
     if a.json:
         return say_json(d)
     print(

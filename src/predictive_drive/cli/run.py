@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from ..api.run import ENGINES, run
+from ..errors import ConfigError
 from ..live import DEFAULT_PORT
 from ..ros.placement import AFFINITIES, SCHED_POLICIES
 from .common import print_recording, progress, refuse, say_json, single_settings
@@ -23,6 +24,17 @@ def _switch(text: str) -> tuple[float, str]:
         raise argparse.ArgumentTypeError(
             f"expected T:STRATEGY (e.g. 2.5:mptc), got {text!r}"
         ) from None
+
+
+def _external(texts: list[str]) -> dict[str, str | None]:
+    """``NODE[=COMMAND]`` arguments → node → command (None: started by hand)."""
+    out: dict[str, str | None] = {}
+    for text in texts:
+        name, sep, command = text.partition("=")
+        if name in out:
+            raise ConfigError(f"--external {name}: given twice")
+        out[name] = command if sep else None
+    return out
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -57,6 +69,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         choices=tuple(SCHED_POLICIES),
         help="--engine ros: scheduling policy of the node processes' threads: batch (default, "
         "SCHED_BATCH: a woken node does not preempt the one publishing to it) or other",
+    )
+    p.add_argument(
+        "--external",
+        action="append",
+        metavar="NODE[=COMMAND]",
+        help="your own node in place of ours (torque_controller or speed_pi; --engine ros): "
+        "COMMAND starts it (any executable; --ros-args with its name, namespace and the "
+        "parameter files are appended), or without =COMMAND you start it by hand as the run "
+        "says (docs/ros.md, 'Writing your own controller')",
     )
     p.add_argument("--out", help="bag directory to write (must not exist)")
     p.add_argument(
@@ -109,6 +130,7 @@ def main(a: argparse.Namespace) -> int:
             sched=a.sched or "batch",
             peer_timeout=10.0 if a.peer_timeout is None else a.peer_timeout,
             live=a.live or 0,
+            external=_external(a.external or []),
         )
     finally:
         close()

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ConfigError
-from .control import controller_class
+from .control import EXTERNAL, controller_class
 from .control.speed_pi import SpeedPIParams
 from .fields import check_fields, choice, quantity
 from .machines import Machine
@@ -169,6 +169,9 @@ class Scenario:
     family: str
     source: str = ""
     text: str = ""
+    #: the torque controller is a node of the user's own (:data:`~.control.EXTERNAL`); the
+    #: section's own strategy is then not run
+    external: bool = False
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)
@@ -198,14 +201,18 @@ class Scenario:
 
     @property
     def strategy(self) -> str:
-        """The strategy the controller starts with."""
-        return str(self.controller.strategy)
+        """The strategy the controller starts with (:data:`~.control.EXTERNAL`: a node of the
+        user's own)."""
+        return EXTERNAL if self.external else str(self.controller.strategy)
 
     def with_strategy(self, strategy: str | None) -> Scenario:
-        """The same scenario starting with another strategy of its family (None: unchanged);
-        ConfigError lists the family's strategies."""
+        """The same scenario starting with another strategy of its family (None: unchanged), or
+        with a torque controller of the user's own (:data:`~.control.EXTERNAL`); ConfigError
+        lists the family's strategies."""
         if strategy is None:
             return self
+        if strategy == EXTERNAL:
+            return dataclasses.replace(self, external=True)
         names = tuple(controller_class(self.family).strategies)
         if strategy not in names:
             raise ConfigError(
@@ -213,7 +220,9 @@ class Scenario:
                 f"{self.family!r}; valid: {', '.join(names)}"
             )
         return dataclasses.replace(
-            self, controller=dataclasses.replace(self.controller, strategy=strategy)
+            self,
+            controller=dataclasses.replace(self.controller, strategy=strategy),
+            external=False,
         )
 
     def with_duration(self, duration: float | None) -> Scenario:

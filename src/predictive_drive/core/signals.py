@@ -15,6 +15,7 @@ from typing import Any, NamedTuple
 __all__ = [
     "COMMAND_DIAGNOSTICS",
     "COMMAND_INDEX",
+    "EXTERNAL",
     "PULSES",
     "REFERENCE_INDEX",
     "STATE_INDEX",
@@ -73,6 +74,11 @@ class PhasePulses(NamedTuple):
     duty_a: float
     duty_b: float
     duty_c: float
+
+
+#: the strategy of a run whose torque controller is a node of the user's own
+#: (docs/ros.md#writing-your-own-controller): its commands carry no strategy index (NaN)
+EXTERNAL = "external:torque_controller"
 
 
 class Command(NamedTuple):

@@ -8,11 +8,12 @@ then ends every child by PID: SIGINT (the logger closes its bag), then SIGTERM, 
 from __future__ import annotations
 
 import re
+import shlex
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -64,20 +65,29 @@ def run_graph(
     affinity: str = "paired",
     sched: str = "batch",
     live_port: int = 0,
+    external: Mapping[str, str | None] | None = None,
 ) -> None:
     """Run ``sc`` through the graph and record it to ``bag``; with ``live_port``, the logger
     also serves the live view there (:class:`~predictive_drive.live.LiveView`); GraphError names the node that
     failed first and says what state the bag is in. The node logs stay with the bag
     (``<bag>/logs/``). ``affinity`` places the separate node processes on CPUs (see
     :func:`cpu_plan`) and ``sched`` is their threads' scheduling policy
-    (:data:`SCHED_POLICIES`); the composed engine runs in one process and is left as it is."""
+    (:data:`SCHED_POLICIES`); the composed engine runs in one process and is left as it is.
+    ``external``: nodes of the user's own in place of ours (docs/ros.md#writing-your-own-controller),
+    by name: a command line the launcher starts (with ``--ros-args``, the node's name, namespace
+    and parameter files appended) and owns like its own nodes, or None for a node the user starts
+    by hand (the launcher says how, and the graph waits for it as for any node)."""
+    external = dict(external or {})
     if sched not in SCHED_POLICIES:
         raise GraphError(f"--sched: {sched!r} is not one of {', '.join(SCHED_POLICIES)}")
     bag = check_new_bag(bag, claimed=True).resolve()  # the caller claimed it
     source = str(Path(sc.source).resolve())
     shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
     overrides: dict[str, dict[str, Any]] = {node_name(n): dict(shared) for n in NODES}
-    overrides[node_name("torque_controller")]["strategy"] = sc.strategy
+    if "torque_controller" not in external:
+        overrides[node_name("torque_controller")]["strategy"] = sc.strategy
+    else:  # the contract's parameter (ours declares it with this default)
+        overrides[node_name("torque_controller")]["command_readers"] = 2
     overrides[node_name("metrics_logger")].update(
         strategy=sc.strategy,
         bag=str(bag),
@@ -107,6 +117,16 @@ def run_graph(
         children = _Children(procs, logs)
         try:
             for name, module in modules.items():
+                if name in external:
+                    command = external[name]
+                    if command is None:
+                        _say_how_to_start(name, domain, args)
+                        continue
+                    own = ["-r", f"__node:={name}", "-r", f"__ns:={NAMESPACE}"]
+                    procs[name] = start_process(
+                        [*shlex.split(command), *args, *own], log=logs / f"{name}.log", env=env
+                    )
+                    continue
                 procs[name] = start_process(
                     [*node_command(module), *args],
                     log=logs / f"{name}.log",
@@ -143,6 +163,17 @@ def run_graph(
             children.shm.clean()
             if watcher is not None:
                 watcher.close()
+
+
+def _say_how_to_start(name: str, domain: int, args: list[str]) -> None:
+    """How to start a node of the user's own by hand into this run's graph."""
+    print(
+        f"predictive-drive: waiting for your {node_name(name)}: start it (from another shell) "
+        f"with ROS_DOMAIN_ID={domain} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and the arguments\n"
+        f"  {shlex.join([*args, '-r', f'__node:={name}', '-r', f'__ns:={NAMESPACE}'])}",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 #: a node's log line saying a signal stopped it mid-run (node_base.STOPPED_LINE)

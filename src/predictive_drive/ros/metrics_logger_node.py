@@ -60,6 +60,8 @@ class RecordingParams:
 class MetricsLoggerNode(WatchedNode):
     """Records raw bytes (no decode on the hot path but the running metrics')."""
 
+    patience = 1.0  #: see WatchedNode.patience
+
     section = "metrics_logger"
 
     def __init__(self, **kw: Any) -> None:

@@ -281,6 +281,12 @@ class WatchedNode(DriveNode):
     publishers (``self.lockstep``) are kept until their readers have acknowledged every message
     when the run ends, so a recorder that was behind still gets them."""
 
+    #: s this node waits beyond the peer timeout before it fails. When the loop stalls, every
+    #: node waits; the one waiting on the silent peer directly must speak first and name it, so
+    #: the nodes further along the loop from a controller wait longer: the plant (waits on the
+    #: torque controller) 0.25 s, the speed PI (on the plant) 0.5 s, the recorder (on all) 1 s
+    patience: float = 0.0
+
     def __init__(self, name: str, **kw: Any) -> None:
         super().__init__(name, **kw)
         self._last_progress = time.monotonic()
@@ -304,7 +310,7 @@ class WatchedNode(DriveNode):
         if self.finished or self.failure:
             return
         limit = self.peer_timeout if self._started else self.startup_timeout
-        if time.monotonic() - self._last_progress > limit:
+        if time.monotonic() - self._last_progress > limit + self.patience * self._started:
             self.fail(
                 f"{self.get_fully_qualified_name()}: {self.stalled_message()} within {limit} s"
             )

@@ -19,9 +19,11 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 
-from ..codec import CODECS
+from ..codec import CODECS, labelled
+from ..core.commands import CommandError, command_from
 from ..core.runner import build_plant
 from ..core.signals import Command, State
+from ..errors import BagError
 from ..interface import LAUNCHER_NODE, NAMESPACE, RECORDING_WINDOW, TOPICS, node_name
 from ..recording import tool_every, tool_messages
 from .node_base import WatchedNode, run_main
@@ -34,6 +36,8 @@ _STATE, _CMD, _RECORDED = CODECS["state"], CODECS["command"], CODECS["recorded"]
 
 class PlantNode(WatchedNode):
     """Motor + inverter + load. Step 0 goes out once every peer listens."""
+
+    patience = 0.25  #: see WatchedNode.patience
 
     section = "plant"
 
@@ -102,7 +106,9 @@ class PlantNode(WatchedNode):
     def check(self) -> None:
         if not self.k_started and not self._not_listening():
             self.k_started = True
-            self.progressed()
+            # command 0 is still start-up (startup_timeout): a controller may be finishing its
+            # discovery of the recorder; the peer timeout counts from command 0 on
+            self.resumed()
             self._offer(self.plant.state())
             return
         held = self.held
@@ -201,9 +207,36 @@ class PlantNode(WatchedNode):
         )
 
     def on_command(self, data: bytes) -> None:
-        cmd = Command(*_CMD.decode(data))
+        """Command k in whichever form the controller gives it (built-in: the fast path); a
+        command that cannot be applied ends the run, naming the field and the step."""
+        values = _CMD.exact(data)
+        try:
+            if values is None:
+                cmd = command_from(labelled(data), u_dc=self.plant.u_dc)
+            else:
+                cmd = Command(*values)
+            if cmd.k != self.plant.k:
+                raise CommandError(
+                    f"step {self.plant.k}: field 'k' = {cmd.k:g}: the command for another step "
+                    f"(the plant waits for step {self.plant.k})",
+                    field="k",
+                    k=cmd.k,
+                )
+        except CommandError as e:
+            self._refuse(str(e))
+            return
+        except BagError as e:
+            self._refuse(f"step {self.plant.k}: {e}")
+            return
         self.progressed()
         self._offer(self.plant.step(cmd))
+
+    def _refuse(self, why: str) -> None:
+        """A command the plant cannot apply ends the run (docs/ros.md#writing-your-own-controller)."""
+        self.fail(
+            f"{node_name('plant')}: refused {TOPICS['command'].name} from "
+            f"{node_name('torque_controller')}: {why}"
+        )
 
 
 def main(args: list[str] | None = None) -> int:

@@ -24,6 +24,8 @@ class SpeedPINode(WatchedNode):
     """Speed PI: answers state k with the reference for k+1 (and state 0 also with reference 0),
     or, with ``speed_loop: immediate``, with the reference for k (the controller waits for it)."""
 
+    patience = 0.5  #: see WatchedNode.patience
+
     section = "speed_pi"
 
     def __init__(self, **kw: Any) -> None:

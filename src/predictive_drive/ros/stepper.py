@@ -14,6 +14,7 @@ differ — read its agreement as "what it would have decided here", not as a clo
 
 from __future__ import annotations
 
+import shlex
 import subprocess
 import time
 from dataclasses import dataclass
@@ -21,13 +22,13 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import LOGS_DIR, BagWriter
-from ..codec import CODECS, stamp_ns
+from ..codec import CODECS, decode_command, stamp_ns
 from ..core.control import strategy_names
-from ..core.signals import COMMAND_INDEX, PULSES
+from ..core.signals import COMMAND_INDEX, EXTERNAL, PULSES, STATE_INDEX
 from ..errors import GraphError, Interrupted
 from ..interface import NAMESPACE, STEPPER_NODE, node_name
 from ..readback import read_bag
-from ..recording import bag_info, scenario_of, tool_every, tool_messages
+from ..recording import bag_info, scenario_of, strategy_name, tool_every, tool_messages
 from .placement import ros_env
 from .processes import (
     SharedMemory,
@@ -70,10 +71,14 @@ class StepResult:
         }
 
 
-def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -> StepResult:
+def replay_into(
+    source: str | Path, out: Path, *, strategy: str | None = None, command: str | None = None
+) -> StepResult:
     """Feed the recording ``source`` into a torque controller node step by step and record the
     result to ``out`` as it goes (the caller holds ``out``'s claim). ``strategy``: the one
-    strategy to replay into (default: the recording's own, switched at the recorded steps).
+    strategy to replay into (default: the recording's own, switched at the recorded steps);
+    ``command``: a controller node of the user's own to start instead of ours (its command line;
+    ``--ros-args``, its name, namespace and parameter files appended).
     Interrupted (KeyboardInterrupt), the new bag is closed with every step replayed so far and
     :class:`~predictive_drive.errors.Interrupted` says what it holds."""
     from rclpy.parameter import Parameter
@@ -85,22 +90,30 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
     names = strategy_names(sc.family)
     if strategy is not None and strategy not in names:
         raise GraphError(f"--strategy {strategy!r}: valid for {sc.family}: {', '.join(names)}")
-    recorded = [names[int(i)] for i in trace.col("command", "strategy")]
+    recorded = [strategy_name(names, i) for i in trace.col("command", "strategy")]
     plan = [strategy] * n if strategy is not None else recorded
+    if command is not None:
+        plan = [EXTERNAL] * n  # the user's node: no strategy to set or switch
     out = out.resolve()
     logs = out / LOGS_DIR
     logs.mkdir(parents=True, exist_ok=True)
     scenario_file = logs / "scenario.yaml"
     scenario_file.write_text(sc.text)
+    ours = {"strategy": plan[0]} if command is None else {}
     overrides = {
         node_name("torque_controller"): {
             "duration": n * sc.ts,
-            "strategy": plan[0],
+            **ours,
             "command_readers": 1,
             "peer_timeout": COMMAND_TIMEOUT,
         }
     }
     args = parameter_args(scenario_file, overrides, logs)
+    if command is None:
+        start = [*node_command("torque_controller_node"), *args]
+    else:
+        own = ["-r", "__node:=torque_controller", "-r", f"__ns:={NAMESPACE}"]
+        start = [*shlex.split(command), *args, *own]
     bag_meta = {
         **bag_info(sc.with_strategy(plan[0] if strategy is None else strategy), "replay"),
         "replay_of": str(Path(source).resolve()),
@@ -119,7 +132,7 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
         pub_ref = raw_publisher(me, "reference")
         client = AsyncParameterClient(me, node_name("torque_controller"))
         proc = start_process(
-            [*node_command("torque_controller_node"), *args],
+            start,
             log=logs / "torque_controller.log",
             env=ros_env(domain, log_dir=logs),
         )
@@ -136,9 +149,9 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
 
             _wait(ex, matched, 60.0, proc, logs, "the controller never matched the topics")
             shm.sample([proc.pid])
-            if strategy is None and len(set(plan)) > 1:
+            if command is None and strategy is None and len(set(plan)) > 1:
                 _wait(ex, client.services_are_ready, 60.0, proc, logs, "no parameter services")
-            state, ref, cmd = CODECS["state"], CODECS["reference"], CODECS["command"]
+            state, ref = CODECS["state"], CODECS["reference"]
             in_force = plan[0]
             t0 = time.perf_counter()
             for k in range(n + 1):
@@ -154,7 +167,8 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
                 recorder.inputs(row, reference)
                 if k < n:
                     _wait(ex, lambda k=k: len(got) > k, COMMAND_TIMEOUT, proc, logs, f"step {k}")
-                    commands.append(cmd.decode(got[k]))
+                    u_dc = float(row[U_DC])  # a voltage reference is modulated from it
+                    commands.append(decode_command(got[k], lambda: u_dc))  # noqa: B023
                     recorder.command(commands[-1])
             wall = time.perf_counter() - t0
             proc.wait(timeout=COMMAND_TIMEOUT + 30)
@@ -176,12 +190,15 @@ def replay_into(source: str | Path, out: Path, *, strategy: str | None = None) -
     return StepResult(
         bag=out,
         steps=n,
-        strategy=strategy or "as recorded",
+        strategy=EXTERNAL if command is not None else strategy or "as recorded",
         vector_agreement=sum(same_vector) / n,
         pulse_agreement=sum(same_pulses) / n,
         compute_us_per_step=compute[len(compute) // 2] / 1e3,
         steps_per_s=n / wall,
     )
+
+
+U_DC = STATE_INDEX.u_dc
 
 
 class _Recorder:

@@ -19,6 +19,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Any
 
+from ..signals import EXTERNAL
 from .base import Controller, Decision, Strategy, VectorController, instantiate
 from .foc_pmsm import FOCController, FOCParams
 from .mptc_im import InductionController, InductionControllerParams
@@ -28,6 +29,7 @@ __all__ = [
     "CONTROLLERS",
     "Controller",
     "Decision",
+    "EXTERNAL",
     "FOCController",
     "FOCParams",
     "Family",

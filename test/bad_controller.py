@@ -1,0 +1,97 @@
+"""A torque controller node of one's own that misbehaves at one step, for the tests of what the
+graph does then (test_external.py): ``bad_controller.py MODE STEP --ros-args ...``. Until STEP it
+answers every state with V1 for the whole period (s_a, s_b, s_c = 1, 0, 0); at STEP it does what
+MODE says. rclpy and std_msgs only, as a user's node."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+LOCKSTEP = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_ALL,
+)
+SWITCHING = ("k", "t", "s_a", "s_b", "s_c")
+PULSES = ("k", "t", "delay_a", "delay_b", "delay_c", "duty_a", "duty_b", "duty_c")
+#: MODE → the command at STEP (labels, values given k and t), or None: no command at all
+MODES = {
+    "switching_state_2": lambda k, t: (SWITCHING, (k, t, 1.0, 2.0, 0.0)),
+    "wrong_step": lambda k, t: (SWITCHING, (k + 1, t, 1.0, 0.0, 0.0)),
+    "unknown_field": lambda k, t: ((*SWITCHING, "gain"), (k, t, 1.0, 0.0, 0.0, 2.0)),
+    "missing_field": lambda k, t: (SWITCHING[:4], (k, t, 1.0, 0.0)),
+    "nan_duty": lambda k, t: (PULSES, (k, t, 0.0, 0.0, 0.0, math.nan, 0.0, 0.0)),
+    "pulse_past_period": lambda k, t: (PULSES, (k, t, 0.6, 0.0, 0.0, 0.5, 0.0, 0.0)),
+    "voltage_inf": lambda k, t: (("k", "t", "u_alpha", "u_beta"), (k, t, math.inf, 0.0)),
+}
+
+
+def message(labels: tuple[str, ...], values: tuple[float, ...]) -> Float64MultiArray:
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=",".join(labels), size=len(labels),
+                                          stride=len(labels))]  # fmt: skip
+    msg.data = [float(v) for v in values]
+    return msg
+
+
+class BadController(Node):
+    def __init__(self, mode: str, at: int) -> None:
+        super().__init__("bad_controller")
+        self.mode, self.at = mode, at
+        self.pub = self.create_publisher(Float64MultiArray, "command", LOCKSTEP)
+        self.refs: set[int] = set()
+        self.states: dict[int, float] = {}
+        self.k = 0
+        self.create_subscription(Float64MultiArray, "state", self.on_state, LOCKSTEP)
+        self.create_subscription(Float64MultiArray, "torque_reference", self.on_ref, LOCKSTEP)
+
+    def on_state(self, msg: Float64MultiArray) -> None:
+        self.states[int(msg.data[0])] = msg.data[1]
+        self.step()
+
+    def on_ref(self, msg: Float64MultiArray) -> None:
+        self.refs.add(int(msg.data[0]))
+        self.step()
+
+    def step(self) -> None:
+        k = self.k
+        if k not in self.states or k not in self.refs:
+            return
+        if k == 0:
+            while self.pub.get_subscription_count() < 2:
+                time.sleep(0.005)
+        t = self.states.pop(k)
+        if k == self.at:
+            if self.mode == "dies":
+                os._exit(3)
+            if self.mode == "silent":
+                self.k = -1  # never answers again
+                return
+            self.pub.publish(message(*MODES[self.mode](float(k), t)))
+        else:
+            self.pub.publish(message(SWITCHING, (k, t, 1.0, 0.0, 0.0)))
+        self.k = k + 1
+
+
+def main() -> int:
+    mode, at = sys.argv[1], int(sys.argv[2])
+    rclpy.init(args=sys.argv)
+    node = BadController(mode, at)
+    try:
+        while rclpy.ok():
+            rclpy.spin_once(node, timeout_sec=0.1)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,266 @@
+"""A torque controller of one's own in the loop (docs/ros.md#writing-your-own-controller): the
+example package's switching-table DTC run as the torque controller through separate processes,
+started by the launcher or by hand; compared with DB-MPTC; and a controller that misbehaves ends
+the run naming the field and the step, the bag closed with every step before it. Each test owns
+what it starts and ends it by PID."""
+
+from __future__ import annotations
+
+import ast
+import json
+import math
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from predictive_drive.api.compare import compare
+from predictive_drive.api.run import run, run_inprocess_to_bag
+from predictive_drive.codec import labelled
+from predictive_drive.config import load_scenario
+from predictive_drive.core.signals import EXTERNAL
+from predictive_drive.readback import read_bag
+from procs import end_all
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "dtc_im"
+DTC = f"{shlex.quote(sys.executable)} {shlex.quote(str(EXAMPLE / 'dtc_im' / 'dtc_node.py'))}"
+BAD = f"{shlex.quote(sys.executable)} {shlex.quote(str(ROOT / 'test' / 'bad_controller.py'))}"
+CLI = [sys.executable, "-m", "predictive_drive.cli"]
+
+
+@pytest.mark.core
+def test_the_example_imports_only_rclpy_the_messages_and_the_standard_library():
+    """The contract is all a user needs: the example never imports predictive_drive."""
+    allowed = {"rclpy", "std_msgs", *sys.stdlib_module_names, "dtc_im"}
+    files = sorted(EXAMPLE.rglob("*.py"))
+    assert len(files) >= 3  # the node, the package, setup.py
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            else:
+                continue
+            for name in names:
+                assert name.split(".")[0] in allowed | {"setuptools"}, (path, name)
+
+
+@pytest.fixture(scope="module")
+def dtc_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("external") / "dtc"
+    r = run("im_short", engine="ros", out=out, external={"torque_controller": DTC})
+    return r
+
+
+@pytest.mark.process
+def test_the_example_dtc_runs_as_the_torque_controller(dtc_run):
+    r = dtc_run
+    assert r.strategy == EXTERNAL and r.steps == load_scenario("im_short").run.steps
+    assert [(s.strategy, s.first, s.last) for s in r.details.strategies] == [
+        (EXTERNAL, 0, r.steps - 1)
+    ]
+    m = r.metrics
+    assert math.isfinite(m.t_rmse) and math.isfinite(m.psi_rmse) and m.f_sw_hz > 0
+    assert m.t_rmse < 1.0 and m.psi_rmse < 0.05  # it controls the drive: torque and flux follow
+    assert math.isnan(m.cal_ave)  # a figure the controller did not publish: not applicable
+    trace, info = read_bag(r.bag)
+    assert info.info["strategy"] == EXTERNAL and info.info["command_contract"] == "1"
+    assert trace.command.shape[0] == r.steps
+    # recorded as the node published it (its diagnostics; no compute time), read back with its
+    # switching state as the pulses the plant applied: each phase high or low all period
+    assert math.isfinite(trace.col("command", "torque_est")[-1])
+    assert math.isnan(trace.col("command", "compute_ns")[0])
+    pulses = trace.command[:, 2:8]
+    assert (pulses[:, :3] == 0).all() and set(np.unique(pulses[:, 3:])) == {0.0, 1.0}
+
+
+@pytest.mark.process
+def test_compare_puts_the_example_beside_db_mptc(dtc_run, tmp_path):
+    sc = load_scenario("im_short", strategy="db_mptc")
+    db = tmp_path / "db_mptc"
+    run_inprocess_to_bag(sc, db)
+    d = compare([str(dtc_run.bag), str(db)], figures=tmp_path / "figures")
+    rows = {r.label: r for r in d.runs}
+    assert set(rows) == {f"im_short {EXTERNAL}", "im_short db_mptc"}
+    ours, theirs = rows["im_short db_mptc"].metrics, rows[f"im_short {EXTERNAL}"].metrics
+    assert ours.t_rmse < theirs.t_rmse  # MPTC's advantage over the switching table
+    assert d.figures and all(Path(f).stat().st_size > 10_000 for f in d.figures)
+
+
+@pytest.mark.process
+def test_a_node_started_by_hand_joins_the_run(tmp_path):
+    """Without =COMMAND the run says how to start the node and waits; started from here as a
+    user would from another shell, it joins and the run completes."""
+    out = tmp_path / "by_hand"
+    cmd = [*CLI, "run", "im_short", "--duration", "0.05", "--external", "torque_controller",
+           "--out", str(out), "--json"]  # fmt: skip
+    started = []
+    try:
+        launcher = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+        )
+        started.append(launcher)
+        said = ""
+        while "waiting for your /drive/torque_controller" not in said:
+            line = launcher.stderr.readline()
+            assert line, said
+            said += line
+        domain = re.search(r"ROS_DOMAIN_ID=(\d+) ROS_AUTOMATIC", said).group(1)
+        args = shlex.split(launcher.stderr.readline())  # the arguments, on a line of their own
+        assert args[0] == "--ros-args" and "__node:=torque_controller" in args
+        env = {**os.environ, "ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+        node = subprocess.Popen([*shlex.split(DTC), *args], env=env, start_new_session=True,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+        started.append(node)
+        stdout, _ = launcher.communicate(timeout=120)
+        assert launcher.returncode == 0
+        assert node.wait(timeout=30) == 0  # it ends itself after the last step
+        d = json.loads(stdout)
+        assert d["strategy"] == EXTERNAL and d["steps"] == 1000
+        assert math.isfinite(d["metrics"]["t_rmse"])
+    finally:
+        end_all(started)
+
+
+BAD_CASES = [
+    ("switching_state_2", "field 's_b' = 2.0: a switching state is 0 (low) or 1 (high)"),
+    ("wrong_step", "field 'k' = 101: the command for another step (the plant waits for step 100)"),
+    ("unknown_field", "unknown field 'gain'; a command carries k, t, one of pulses"),
+    ("missing_field", "the switching state lacks s_c (it is s_a, s_b, s_c)"),
+    ("nan_duty", "field 'duty_a' = nan: a fraction of Ts must lie in [0, 1]"),
+    ("pulse_past_period", "field 'duty_a' = 0.5: delay_a + duty_a = 1.1 exceeds the period (1)"),
+    ("voltage_inf", "field 'u_alpha' = inf: a voltage reference must be a finite number of volts"),
+]
+
+
+@pytest.mark.process
+@pytest.mark.parametrize("mode,message", BAD_CASES, ids=[m for m, _ in BAD_CASES])
+def test_a_bad_command_ends_the_run_naming_field_and_step(mode, message, tmp_path):
+    out = tmp_path / mode
+    r = subprocess.run(
+        [*CLI, "run", "im_short", "--duration", "0.02", "--out", str(out),
+         "--external", f"torque_controller={BAD} {mode} 100"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 2, r.stderr  # GraphError: the run failed
+    said = (
+        "/drive/plant: refused /drive/command from /drive/torque_controller: step 100: " + message
+    )
+    assert said in r.stderr, r.stderr
+    assert "node plant" in r.stderr and "failed first" in r.stderr
+    trace, _ = read_bag(out)  # closed, readable: every step before the bad one
+    assert trace.command.shape[0] == 100
+    assert list(trace.state[:, 0]) == list(range(101))
+
+
+def _run_bad(mode: str, out: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [*CLI, "run", "im_short", "--duration", "0.02", "--out", str(out), "--peer-timeout", "2",
+         "--external", f"torque_controller={BAD} {mode} 100"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+
+
+@pytest.mark.process
+def test_a_controller_that_stops_answering_is_named_by_the_plant(tmp_path):
+    r = _run_bad("silent", tmp_path / "silent")
+    assert r.returncode == 2, r.stderr
+    assert "no /drive/command for step 100 from /drive/torque_controller" in r.stderr, r.stderr
+    assert "node plant" in r.stderr and "failed first" in r.stderr
+    trace, _ = read_bag(tmp_path / "silent")
+    assert list(trace.state[:, 0]) == list(range(101)) and trace.command.shape[0] == 100
+
+
+@pytest.mark.process
+def test_a_controller_that_dies_is_named_and_the_bag_closes(tmp_path):
+    """The node exits (status 3) at step 100: the launcher names it, the recorder closes the
+    bag with every state and reference up to step 100. The commands the recorder had not taken
+    when the node died went with it (its DDS writer is gone): the bag holds those it took."""
+    from mcap.reader import make_reader
+
+    out = tmp_path / "dies"
+    r = _run_bad("dies", out)
+    assert r.returncode == 2, r.stderr
+    assert re.search(r"node torque_controller \(pid \d+\) failed first: it exited with status 3",
+                     r.stderr), r.stderr  # fmt: skip
+    with open(next(out.glob("*.mcap")), "rb") as f:  # closed: summary and footer are there
+        reader = make_reader(f)
+        assert reader.get_summary() is not None
+        steps: dict[str, list[int]] = {}
+        for _, channel, message in reader.iter_messages():
+            if channel.topic in ("/drive/state", "/drive/torque_reference", "/drive/command"):
+                k = int(labelled(message.data)["k"])
+                steps.setdefault(channel.topic, []).append(k)
+    assert steps["/drive/state"] == list(range(101))
+    assert steps["/drive/torque_reference"][:101] == list(range(101))
+    commands = steps.get("/drive/command", [])
+    assert commands == list(range(len(commands))) and len(commands) <= 100
+
+
+@pytest.mark.process
+def test_replaying_the_example_into_itself_gives_its_commands_bit_for_bit(dtc_run, tmp_path):
+    """replay BAG --into torque_controller=COMMAND: the recorded states and references step by
+    step into the example; it answers every step as in the run, and the new bag says so."""
+    from predictive_drive.api.replay import replay_into
+
+    d = replay_into(dtc_run.bag, command=DTC, out=tmp_path / "again")
+    assert d.strategy == EXTERNAL and d.steps == dtc_run.steps
+    assert d.pulse_agreement == 1.0 and d.vector_agreement == 1.0
+    old, _ = read_bag(dtc_run.bag)
+    new, info = read_bag(d.bag)
+    assert info.info["engine"] == "replay" and info.info["strategy"] == EXTERNAL
+    assert np.array_equal(new.command, old.command, equal_nan=True)  # diagnostics too
+    assert np.array_equal(new.state, old.state)
+
+
+@pytest.mark.process
+def test_the_example_builds_with_colcon_and_its_executable_is_the_controller(tmp_path):
+    """The example is an ament_python package as a user's would be: `colcon build` of a
+    workspace holding it alone installs `lib/dtc_im/dtc_node`; that executable, with the
+    environment `. install/setup.sh` gives, is the external torque controller of a run."""
+    import shutil
+
+    ws = tmp_path / "ws"
+    shutil.copytree(EXAMPLE, ws / "src" / "dtc_im")
+    colcon = Path(sys.executable).with_name("colcon")
+    subprocess.run([str(colcon), "build", "--base-paths", "src"], cwd=ws, check=True,
+                   timeout=300, capture_output=True)  # fmt: skip
+    prefix = ws / "install" / "dtc_im"
+    exe = prefix / "lib" / "dtc_im" / "dtc_node"
+    assert exe.is_file() and (prefix / "share" / "dtc_im" / "package.xml").is_file()
+    site = next(prefix.glob("lib/python3*/site-packages"))
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    r = subprocess.run(
+        [*CLI, "run", "im_short", "--duration", "0.05", "--out", str(tmp_path / "bag"), "--json",
+         "--external", f"torque_controller={shlex.quote(str(exe))}"],
+        capture_output=True, text=True, timeout=180, env=env, cwd=tmp_path,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["strategy"] == EXTERNAL and d["steps"] == 1000
+
+
+@pytest.mark.process
+def test_the_speed_loop_started_as_an_external_command_gives_the_same_run(tmp_path):
+    """--external speed_pi=COMMAND, the command being this package's own speed PI node started
+    as any executable would be: the launcher's naming, namespace and parameters reach it, and
+    the run equals the one the launcher makes itself, message for message."""
+    own = f"{shlex.quote(sys.executable)} -m predictive_drive.ros.speed_pi_node"
+    a = run("im_short", engine="ros", duration=0.05, out=tmp_path / "ext",
+            external={"speed_pi": own})  # fmt: skip
+    b = run("im_short", engine="ros", duration=0.05, out=tmp_path / "own")
+    ta, _ = read_bag(a.bag)
+    tb, _ = read_bag(b.bag)
+    assert a.strategy == b.strategy == "db_mptc"
+    for rec in ("state", "reference"):
+        assert np.array_equal(getattr(ta, rec), getattr(tb, rec)), rec
+    # the decisions alike (the command's last field, compute_ns, is measured; NaN where a
+    # diagnostic does not apply)
+    assert np.array_equal(ta.command[:, :-1], tb.command[:, :-1], equal_nan=True)
