@@ -1,7 +1,8 @@
 """A torque controller node of one's own that misbehaves at one step, for the tests of what the
 graph does then (test_external.py): ``bad_controller.py MODE STEP --ros-args ...``. Until STEP it
 answers every state with V1 for the whole period (s_a, s_b, s_c = 1, 0, 0); at STEP it does what
-MODE says. rclpy and std_msgs only, as a user's node."""
+MODE says (``slow_start``: command 0 comes 4 s late, then all is well). rclpy and std_msgs only,
+as a user's node."""
 
 from __future__ import annotations
 
@@ -44,8 +45,15 @@ def message(labels: tuple[str, ...], values: tuple[float, ...]) -> Float64MultiA
 
 class BadController(Node):
     def __init__(self, mode: str, at: int) -> None:
-        super().__init__("bad_controller")
+        super().__init__(
+            "bad_controller",
+            allow_undeclared_parameters=True,
+            automatically_declare_parameters_from_overrides=True,
+        )
         self.mode, self.at = mode, at
+        ts, duration = (float(self.get_parameter(n).value) for n in ("ts", "duration"))
+        self.steps = round(duration / ts)  #: after the last command it ends, as the contract says
+        self.done = False
         self.pub = self.create_publisher(Float64MultiArray, "command", LOCKSTEP)
         self.refs: set[int] = set()
         self.states: dict[int, float] = {}
@@ -68,8 +76,10 @@ class BadController(Node):
         if k == 0:
             while self.pub.get_subscription_count() < 2:
                 time.sleep(0.005)
+            if self.mode == "slow_start":  # as a node still loading or discovering would
+                time.sleep(4.0)
         t = self.states.pop(k)
-        if k == self.at:
+        if k == self.at and self.mode != "slow_start":
             if self.mode == "dies":
                 os._exit(3)
             if self.mode == "silent":
@@ -79,6 +89,7 @@ class BadController(Node):
         else:
             self.pub.publish(message(SWITCHING, (k, t, 1.0, 0.0, 0.0)))
         self.k = k + 1
+        self.done = self.k == self.steps
 
 
 def main() -> int:
@@ -86,8 +97,9 @@ def main() -> int:
     rclpy.init(args=sys.argv)
     node = BadController(mode, at)
     try:
-        while rclpy.ok():
+        while rclpy.ok() and not node.done:
             rclpy.spin_once(node, timeout_sec=0.1)
+        node.pub.wait_for_all_acked()
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     return 0

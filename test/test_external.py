@@ -179,6 +179,17 @@ def test_a_controller_that_stops_answering_is_named_by_the_plant(tmp_path):
 
 
 @pytest.mark.process
+def test_command_0_may_take_longer_than_the_peer_timeout(tmp_path):
+    """The graph starts until command 0 is applied: a controller that answers state 0 after 4 s
+    (still loading, still discovering) with a peer timeout of 2 s does not fail the run — no
+    node blames its neighbour for the wait (the speed PI once blamed the plant)."""
+    r = _run_bad("slow_start", tmp_path / "slow")
+    assert r.returncode == 0, r.stderr
+    trace, _ = read_bag(tmp_path / "slow")
+    assert trace.steps == 400
+
+
+@pytest.mark.process
 def test_a_controller_that_dies_is_named_and_the_bag_closes(tmp_path):
     """The node exits (status 3) at step 100: the launcher names it, the recorder closes the
     bag with every state and reference up to step 100. The commands the recorder had not taken

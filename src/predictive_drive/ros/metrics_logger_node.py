@@ -170,7 +170,10 @@ class MetricsLoggerNode(WatchedNode):
         )
 
     def on_record(self, rec: str, data: bytes) -> None:
-        self.progressed()
+        # start-up lasts until command 0 is applied: until state 1 comes (see progressed)
+        self.progressed(
+            started=self._started or (rec == "state" and CODECS["state"].decode(data)[0] > 0)
+        )
         self._take(self._record, rec, data)
 
     def _take(self, write: Callable[[str, bytes], None], key: str, data: bytes) -> None:

@@ -299,9 +299,13 @@ class WatchedNode(DriveNode):
             if left > 0:
                 pub.wait_for_all_acked(Duration(seconds=left))
 
-    def progressed(self) -> None:
+    def progressed(self, started: bool = True) -> None:
+        """A message this node waited for came. ``started=False``: one of step 0 — the graph is
+        still starting until command 0 has been applied (a controller may take the start-up
+        timeout for it, still discovering its peers), so the next wait is start-up too."""
         self._last_progress = time.monotonic()
-        self._started = True
+        if started:
+            self._started = True
 
     def resumed(self) -> None:
         self._last_progress = time.monotonic()

@@ -47,8 +47,8 @@ class SpeedPINode(WatchedNode):
 
     def on_state(self, data: bytes) -> None:
         state = State(*_STATE.decode(data))
-        self.progressed()
         k = int(state.k)
+        self.progressed(started=k > 0)
         self._next = k + 1
         if k == 0:
             # controller and logger must hear reference 0

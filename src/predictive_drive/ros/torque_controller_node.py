@@ -139,7 +139,7 @@ class TorqueControllerNode(WatchedNode):
     def _try(self) -> None:
         k = self._k
         if k in self._states and k in self._refs:
-            self.progressed()
+            self.progressed(started=k > 0)
             state = self._states.pop(k)
             ref = self._refs.pop(k)
             if k >= self.n:
