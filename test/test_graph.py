@@ -171,6 +171,9 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     bag = tmp_path / "live"
     p, line = cli_run("im_short", "--duration", "30", "--strategy", "mptc", "--out", str(bag))
     env = dict(os.environ, ROS_DOMAIN_ID=re.search(r"ROS_DOMAIN_ID=(\d+)", line).group(1))
+    # the drive runs (a chunk of mptc is in the bag) before the switch: on a loaded machine the
+    # graph's start can take longer than the parameter calls below
+    wait_recorded(bag, 1, p)
 
     def param(*args):
         return subprocess.run(
