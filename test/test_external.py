@@ -12,6 +12,7 @@ import math
 import os
 import re
 import shlex
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -25,7 +26,7 @@ from predictive_drive.codec import labelled
 from predictive_drive.config import load_scenario
 from predictive_drive.core.signals import EXTERNAL
 from predictive_drive.readback import read_bag
-from procs import end_all
+from procs import end_all, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dtc_im"
@@ -275,3 +276,35 @@ def test_the_speed_loop_started_as_an_external_command_gives_the_same_run(tmp_pa
     # the decisions alike (the command's last field, compute_ns, is measured; NaN where a
     # diagnostic does not apply)
     assert np.array_equal(ta.command[:, :-1], tb.command[:, :-1], equal_nan=True)
+
+
+@pytest.mark.process
+def test_a_users_node_ends_when_the_launcher_is_killed_outright(tmp_path):
+    """Our nodes watch their launcher; a user's node cannot, so the launcher starts it to end
+    with it (SIGTERM when the launcher dies, even by SIGKILL): none is left running."""
+    p = subprocess.Popen(
+        [*CLI, "run", "im_short", "--duration", "30", "--out", str(tmp_path / "bag"),
+         "--external", f"torque_controller={DTC}"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    pid = 0
+    try:
+        line = p.stderr.readline()
+        pid = int(re.search(r"torque_controller pid (\d+)", line).group(1))
+        wait_until(lambda: "dtc_node.py" in Path(f"/proc/{pid}/cmdline").read_text(),
+                   "the node did not start", timeout=30)  # fmt: skip
+        p.kill()  # the launcher, SIGKILL: no chance to stop anything
+        p.wait(timeout=10)
+        wait_until(lambda: not Path(f"/proc/{pid}").exists() or _zombie(pid),
+                   "the user's node outlived its launcher", timeout=30)  # fmt: skip
+    finally:
+        end_all([p])
+        if pid and not _zombie(pid):  # the node this test started, if it did outlive
+            os.kill(pid, signal.SIGKILL)
+
+
+def _zombie(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True

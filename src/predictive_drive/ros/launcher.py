@@ -27,6 +27,7 @@ from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
 from .processes import (
     AGAIN,
     SharedMemory,
+    ending_with_this_process,
     is_stopped,
     isolated_domain,
     node_command,
@@ -123,8 +124,11 @@ def run_graph(
                         _say_how_to_start(name, domain, args)
                         continue
                     own = ["-r", f"__node:={name}", "-r", f"__ns:={NAMESPACE}"]
+                    # a user's node cannot watch the launcher as ours do: it ends with it
                     procs[name] = start_process(
-                        [*shlex.split(command), *args, *own], log=logs / f"{name}.log", env=env
+                        ending_with_this_process([*shlex.split(command), *args, *own]),
+                        log=logs / f"{name}.log",
+                        env=env,
                     )
                     continue
                 procs[name] = start_process(

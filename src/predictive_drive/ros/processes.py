@@ -29,6 +29,7 @@ __all__ = [
     "STOP_GRACE",
     "TERM_GRACE",
     "SharedMemory",
+    "ending_with_this_process",
     "is_stopped",
     "isolated_domain",
     "node_command",
@@ -257,6 +258,23 @@ def parameter_args(
     path = logs / "overrides.yaml"
     path.write_text(yaml.safe_dump(doc))
     return ["--ros-args", "--params-file", str(scenario_file), "--params-file", str(path)]
+
+
+#: run a command so that it ends (SIGTERM) when the process that started it dies, even by
+#: SIGKILL (Linux's PR_SET_PDEATHSIG survives exec): what a user's own node gets, which cannot
+#: watch the launcher as this package's nodes do. ``python -c THIS PARENT_PID COMMAND...``
+_END_WITH_PARENT = (
+    "import ctypes, os, signal, sys; "
+    "ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM); "  # 1: PR_SET_PDEATHSIG
+    "os.getppid() == int(sys.argv[1]) or os._exit(1); "  # the parent died already
+    "os.execvp(sys.argv[2], sys.argv[2:])"
+)
+
+
+def ending_with_this_process(command: list[str]) -> list[str]:
+    """``command`` wrapped so that it ends when this process dies (see :data:`_END_WITH_PARENT`);
+    the same PID runs the command once it starts."""
+    return [sys.executable, "-c", _END_WITH_PARENT, str(os.getpid()), *command]
 
 
 def start_process(

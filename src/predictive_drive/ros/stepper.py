@@ -32,6 +32,7 @@ from ..recording import bag_info, scenario_of, strategy_name, tool_every, tool_m
 from .placement import ros_env
 from .processes import (
     SharedMemory,
+    ending_with_this_process,
     isolated_domain,
     node_command,
     parameter_args,
@@ -113,7 +114,7 @@ def replay_into(
         start = [*node_command("torque_controller_node"), *args]
     else:
         own = ["-r", "__node:=torque_controller", "-r", f"__ns:={NAMESPACE}"]
-        start = [*shlex.split(command), *args, *own]
+        start = ending_with_this_process([*shlex.split(command), *args, *own])
     bag_meta = {
         **bag_info(sc.with_strategy(plan[0] if strategy is None else strategy), "replay"),
         "replay_of": str(Path(source).resolve()),
