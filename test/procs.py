@@ -37,6 +37,14 @@ def descendants(pid: int) -> list[int]:
     return out
 
 
+def ended(pid: int) -> bool:
+    """Gone, or a zombie waiting for whoever reaps orphans here."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
 def wait_until(
     condition: Callable[[], object],
     what: str,

@@ -26,7 +26,7 @@ from predictive_drive.codec import labelled
 from predictive_drive.config import load_scenario
 from predictive_drive.core.signals import EXTERNAL
 from predictive_drive.readback import read_bag
-from procs import end_all, wait_until
+from procs import end_all, ended, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dtc_im"
@@ -295,16 +295,9 @@ def test_a_users_node_ends_when_the_launcher_is_killed_outright(tmp_path):
                    "the node did not start", timeout=30)  # fmt: skip
         p.kill()  # the launcher, SIGKILL: no chance to stop anything
         p.wait(timeout=10)
-        wait_until(lambda: not Path(f"/proc/{pid}").exists() or _zombie(pid),
+        wait_until(lambda: ended(pid),
                    "the user's node outlived its launcher", timeout=30)  # fmt: skip
     finally:
         end_all([p])
-        if pid and not _zombie(pid):  # the node this test started, if it did outlive
+        if pid and not ended(pid):  # the node this test started, if it did outlive
             os.kill(pid, signal.SIGKILL)
-
-
-def _zombie(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
-    except OSError:
-        return True

@@ -28,19 +28,11 @@ from predictive_drive.ros.placement import (
     FASTDDS_PROFILES_ENV,
     cpu_plan,
 )
-from procs import bag_bytes, descendants, kill_if_running, signal_tree, wait_until
+from procs import bag_bytes, descendants, ended, kill_if_running, signal_tree, wait_until
 
 pytestmark = pytest.mark.process
 
 CLI = [sys.executable, "-m", "predictive_drive.cli"]
-
-
-def ended(pid: int) -> bool:
-    """Gone, or a zombie waiting for whoever reaps orphans here."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
-    except OSError:
-        return True
 
 
 def node_pids(line: str) -> dict[str, int]:

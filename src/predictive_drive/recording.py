@@ -39,10 +39,10 @@ from .codec import (
 )
 from .config import load_scenario_text
 from .core.commands import COMMAND_CONTRACT
-from .core.control import EXTERNAL, strategy_names
+from .core.control import strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
-from .core.signals import COMMAND_INDEX, STATE_INDEX
+from .core.signals import COMMAND_INDEX, STATE_INDEX, strategy_name
 from .core.timebase import every_steps
 from .interface import CLOCK_PERIOD, RECORD_TOPICS, TOOL_TOPICS, TOPICS, node_name
 from .mcapio import MessageGroup
@@ -79,7 +79,7 @@ def bag_info(sc: Scenario, engine: str) -> dict[str, Any]:
         "engine": engine,
         "strategy_names": list(strategy_names(sc.family)),
         # a controller of the user's own: the command contract it was held to
-        **({"command_contract": str(COMMAND_CONTRACT)} if sc.strategy == EXTERNAL else {}),
+        **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
     }
 
 
@@ -168,14 +168,6 @@ _NO_SPAN = -1.0
 def _same_strategy(a: float, b: float) -> bool:
     """Two commands' strategy indices name the same strategy (NaN: the user's own, both)."""
     return a == b or (math.isnan(a) and math.isnan(b))
-
-
-def strategy_name(names: tuple[str, ...], index: float) -> str:
-    """The strategy of a command's index; a command without one (NaN) came from a torque
-    controller of the user's own."""
-    if math.isnan(index):
-        return EXTERNAL
-    return names[int(index)] if 0 <= index < len(names) else "?"
 
 
 #: the topics a node's recorder receives each in order but not in order with one another: the

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .signals import COMMAND_INDEX, EXTERNAL, REFERENCE_INDEX, STATE_INDEX
+from .signals import COMMAND_INDEX, REFERENCE_INDEX, STATE_INDEX, strategy_name
 from .timebase import every_steps, step_index
 from .trace import Trace
 
@@ -262,20 +262,13 @@ def compute_metrics(
     fcs = np.isfinite(vec)  # steps decided by a finite-control-set law (not FOC)
     t_u = trace.col("command", "t_u")[k0:k1]
     ns = trace.col("command", "compute_ns")[k0:k1]
-    # a command of the user's own controller has no strategy index (NaN): -1 here
-    strat = np.nan_to_num(trace.col("command", "strategy")[k0:k1], nan=-1.0).astype(int)
+    strat = trace.col("command", "strategy")[k0:k1]
     with np.errstate(invalid="ignore"):
         deadbeat = np.count_nonzero((t_u > 0.0) & (t_u < trace.ts))
     by_strategy = {}
-    for s in np.unique(strat):
-        name = (
-            trace.strategy_names[s]
-            if 0 <= s < len(trace.strategy_names)
-            else EXTERNAL
-            if s == -1
-            else str(s)
-        )
-        by_strategy[name] = float(np.median(ns[strat == s]))
+    for s in np.unique(strat):  # NaN (a controller of the user's own) once, as one strategy
+        steps = np.isnan(strat) if np.isnan(s) else strat == s
+        by_strategy[strategy_name(trace.strategy_names, float(s))] = float(np.median(ns[steps]))
     m = Metrics(
         t_start=k0 * trace.ts,
         t_end=k1 * trace.ts,

@@ -10,9 +10,11 @@ it by name through the index records :data:`STATE_INDEX`, :data:`REFERENCE_INDEX
 
 from __future__ import annotations
 
+import math
 from typing import Any, NamedTuple
 
 __all__ = [
+    "strategy_name",
     "COMMAND_DIAGNOSTICS",
     "COMMAND_INDEX",
     "EXTERNAL",
@@ -79,6 +81,14 @@ class PhasePulses(NamedTuple):
 #: the strategy of a run whose torque controller is a node of the user's own
 #: (docs/ros.md#writing-your-own-controller): its commands carry no strategy index (NaN)
 EXTERNAL = "external:torque_controller"
+
+
+def strategy_name(names: tuple[str, ...], index: float) -> str:
+    """The strategy of a command's ``strategy`` index in its family's ``names``; a command
+    without one (NaN) came from a torque controller of the user's own (:data:`EXTERNAL`)."""
+    if math.isnan(index):
+        return EXTERNAL
+    return names[int(index)] if 0 <= index < len(names) else "?"
 
 
 class Command(NamedTuple):

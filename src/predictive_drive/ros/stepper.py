@@ -24,11 +24,11 @@ from typing import Any
 from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, decode_command, stamp_ns
 from ..core.control import strategy_names
-from ..core.signals import COMMAND_INDEX, EXTERNAL, PULSES, STATE_INDEX
+from ..core.signals import COMMAND_INDEX, EXTERNAL, PULSES, STATE_INDEX, strategy_name
 from ..errors import GraphError, Interrupted
 from ..interface import NAMESPACE, STEPPER_NODE, node_name
 from ..readback import read_bag
-from ..recording import bag_info, scenario_of, strategy_name, tool_every, tool_messages
+from ..recording import bag_info, scenario_of, tool_every, tool_messages
 from .placement import ros_env
 from .processes import (
     SharedMemory,
