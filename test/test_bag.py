@@ -290,6 +290,26 @@ def test_a_record_of_another_layout_is_read_by_field_name():
         CODECS["command"].decode(MultiArrayCodec(("x", "y")).encode((1.0, 2.0)))
 
 
+def test_the_tool_messages_are_what_cdr_writes_field_by_field():
+    """/clock and /drive/joint_states are packed in one struct call each: the same bytes as the
+    CDR writer's field by field (stamp, frame_id, one name, three sequences of one float64,
+    each aligned to 8), for times that round up to the next second too."""
+    from predictive_drive.codec import CdrWriter, encode_clock, encode_joint_state
+
+    rng = np.random.default_rng(5)
+    for t in [0.0, 0.9999999996, 1.5, *rng.uniform(0, 100, 200)]:
+        p, v, e = rng.standard_normal(3) * 100
+        w = CdrWriter()
+        w.time(t)
+        assert encode_clock(t) == w.bytes()
+        w.string("")
+        w.u32(1)
+        w.string("drive_shaft")
+        for x in (p, v, e):
+            w.f64_seq((x,))
+        assert encode_joint_state(t, p, v, e) == w.bytes()
+
+
 def test_repair_writes_what_the_cut_file_holds_in_log_time_order(recorded, tmp_path):
     """A writer killed outright may leave messages out of log-time order across channels (the
     graph delivers command k after state k+1). Made here with the mcap library: every channel

@@ -292,27 +292,42 @@ def decode_multiarray(data: bytes) -> tuple[tuple[str, ...], tuple[float, ...]]:
 # --- the tool topics ---------------------------------------------------------------------------
 
 
+#: rosgraph_msgs/Clock: the encapsulation header, then builtin_interfaces/Time
+_CLOCK = struct.Struct("<4siI")
+
+
 def encode_clock(t: float) -> bytes:
     """rosgraph_msgs/Clock at ``t`` s."""
-    w = CdrWriter()
-    w.time(t)
-    return w.bytes()
+    return _CLOCK.pack(HEADER, *stamp(t))
 
 
 JOINT_NAME = "drive_shaft"
+#: sensor_msgs/JointState of one joint, laid out once (CDR: the header's stamp, frame_id "",
+#: one name, then position, velocity and effort each a sequence of one float64 aligned to 8):
+#: a message is one pack. test_codec holds it to what CdrWriter writes field by field.
+_JOINT = struct.Struct("<4siI" + "I1s3x" + "II12s" + "Id" + "I4xd" + "I4xd")
+_JOINT_NAME = JOINT_NAME.encode() + b"\x00"
 
 
 def encode_joint_state(t: float, position: float, velocity: float, effort: float) -> bytes:
     """sensor_msgs/JointState for the shaft: angle (rad), speed (rad/s), electromagnetic torque (N·m)."""
-    w = CdrWriter()
-    w.time(t)
-    w.string("")  # frame_id
-    w.u32(1)
-    w.string(JOINT_NAME)
-    w.f64_seq((position,))
-    w.f64_seq((velocity,))
-    w.f64_seq((effort,))
-    return w.bytes()
+    sec, nsec = stamp(t)
+    return _JOINT.pack(
+        HEADER,
+        sec,
+        nsec,
+        1,
+        b"",
+        1,
+        len(_JOINT_NAME),
+        _JOINT_NAME,
+        1,
+        position,
+        1,
+        velocity,
+        1,
+        effort,
+    )
 
 
 #: diagnostic_msgs/DiagnosticStatus levels
