@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from mcapcheck import rewrite_bag
 from predictive_drive.api.run import run, run_inprocess_to_bag
 from predictive_drive.config import config_dir, load_scenario
 from predictive_drive.errors import BagError, ConfigError
@@ -260,8 +261,10 @@ def test_a_bad_domain_id_is_named():
 
 
 def _cut(bag: Path, dest: Path, keep: int) -> Path:
-    """A copy of ``bag`` whose file keeps its first ``keep`` bytes (a writer killed there)."""
-    shutil.copytree(bag, dest)
+    """A copy of ``bag`` in 16 KiB chunks (the mcap library's writer) whose file keeps its
+    first ``keep`` bytes: a writer killed there, with whole chunks before the cut (the
+    recorder's own chunks of 768 KiB hold the whole of this short run)."""
+    rewrite_bag(bag, dest, chunk_size=16 * 1024)
     (f,) = dest.glob("*.mcap")
     f.write_bytes(f.read_bytes()[:keep])
     return dest
@@ -309,7 +312,7 @@ def test_layout_to_a_path_that_cannot_be_written_is_an_error():
 
 def test_repair_without_room_says_the_original_is_intact(short_bag, tmp_path):
     cut = _cut(short_bag, tmp_path / "cut", 200_000)
-    before = (cut / "short_0.mcap").read_bytes()
+    before = (cut / "cut_0.mcap").read_bytes()
     held = sorted(p.name for p in cut.iterdir())
     r = subprocess.run(
         [*CLI, "repair", str(cut)], capture_output=True, text=True, timeout=120,
@@ -319,7 +322,7 @@ def test_repair_without_room_says_the_original_is_intact(short_bag, tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert "which failed (File too large); the original is intact: copy the bag to a disk with " \
         "room and repair the copy" in r.stderr  # fmt: skip
-    assert (cut / "short_0.mcap").read_bytes() == before  # intact
+    assert (cut / "cut_0.mcap").read_bytes() == before  # intact
     assert sorted(p.name for p in cut.iterdir()) == held  # nothing added, nothing removed
     assert not list(tmp_path.glob(".cut.repair-*"))  # its temporary copy removed
 

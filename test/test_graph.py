@@ -233,8 +233,9 @@ def assert_placed(nodes: dict[str, int]) -> None:
 
 
 def wait_recorded(bag: Path, chunks: int = 1, p: subprocess.Popen | None = None) -> None:
-    """Wait (up to 120 s) until the bag's file holds ``chunks`` written chunks (~500 steps
-    each): the drive has run that far, whatever the machine's speed."""
+    """Wait (up to 120 s) until the bag's file holds ``chunks`` × 260 kB (~2,000 steps each,
+    whole chunks of ~1,270 steps): the drive has run that far, whatever the machine's
+    speed."""
     wait_until(lambda: bag_bytes(bag) > 260_000 * chunks, "the run did not get that far", proc=p)
 
 

@@ -69,38 +69,88 @@ def test_the_writer_writes_what_the_mcap_library_writes(background):
     assert ours.getvalue() == lib.getvalue()
 
 
-def test_a_group_writes_what_its_messages_one_by_one_write():
-    """MessageGroup.add3 packs state, reference and command at once: the same bytes as three
-    add() calls, chunk boundaries (which fall inside groups here) included."""
+@pytest.mark.parametrize(("prefixed", "after"), [(True, 0), (False, 1), (True, 2)])
+def test_a_group_writes_what_its_messages_one_by_one_write(prefixed, after):
+    """MessageGroup.add_steps writes the records of many steps as one block: the same bytes as
+    add() of each message in turn, with other messages after some steps' first records, blocks
+    of one step and of hundreds, and chunk boundaries (which fall inside blocks here, on each
+    of the parts and on the extra messages) included. ``prefixed``: payloads after a constant
+    prefix (in-process), or whole (a node's recorder); ``after``: the part the extra messages
+    follow (in-process the state, the first; in a node the state, the second)."""
     prefixes = (b"\x00\x01\x00\x00" + b"p" * 36, b"\x00\x01\x00\x00" + b"r" * 20, b"\x00" * 28)
+    if not prefixed:
+        prefixes = (b"", b"", b"")
     widths = (20, 9, 21)
-    rng = np.random.default_rng(2)
 
-    def run(grouped: bool) -> bytes:
+    def run(grouped: bool, seed: int) -> bytes:
+        rng = np.random.default_rng(seed)
         out = io.BytesIO()
         w = ChunkWriter(out, chunk_size=8 * 1024)
         w.start(profile="ros2", library="test")
-        ids = [w.register_channel(f"/c{i}", "cdr", 0, {}) for i in range(4)]
-        group = w.group([(ids[i], prefixes[i], 8 * widths[i]) for i in range(3)])
-        for k in range(700):
-            values = [rng.standard_normal(n).astype("<f8").tobytes() for n in widths]
-            t = k * 50_000
-            if k % 20 == 0:  # something else between the groups now and then
-                w.add(ids[3], t, b"tool")
-            if k % 37 == 0:  # a state on its own (a chunk may begin with it)
-                w.add(ids[0], t, prefixes[0] + bytes(8 * widths[0]))
+        ids = [w.register_channel(f"/c{i}", "cdr", 0, {}) for i in range(5)]
+        group = w.group([(ids[i], prefixes[i], 8 * widths[i]) for i in range(3)], after)
+        k = 0
+        while k < 1500:
+            n = int(rng.choice([1, 2, 7, 128, 300]))
+            values = [rng.standard_normal((n, m)).astype("<f8") for m in widths]
+            times = [np.arange(k, k + n, dtype=np.int64) * 50_000 + (i == 2) for i in range(3)]
+            extras = []
+            for j in range(n):
+                if (k + j) % 20 == 0:  # tool messages after the state, now and then
+                    extra = [(ids[3], int(times[0][j]), b"tool" * int(rng.integers(1, 40)))]
+                    if (k + j) % 40 == 0:
+                        extra.append((ids[4], int(times[0][j]), b"joint"))
+                    extras.append((j, extra))
             if grouped:
-                group.add3(t, t, t + 1, *values)
+                group.add_steps(times, [v.tobytes() for v in values], extras)
             else:
-                for i in range(3):
-                    w.add(ids[i], t + (i == 2), prefixes[i] + values[i])
+                more = dict(extras)
+                for j in range(n):
+                    for i in range(3):
+                        w.add(ids[i], int(times[i][j]), prefixes[i] + values[i][j].tobytes())
+                        if i == after:
+                            for ch, t, data in more.get(j, []):
+                                w.add(ch, t, data)
+            k += n
+            if k % 37 < 3:  # a state on its own between blocks (a chunk may begin with it)
+                w.add(ids[0], k * 50_000, prefixes[0] + bytes(8 * widths[0]))
         w.finish()
         return out.getvalue()
 
-    rng = np.random.default_rng(2)
-    one_by_one = run(False)
-    rng = np.random.default_rng(2)
-    assert run(True) == one_by_one
+    for seed in (2, 3):
+        one_by_one = run(False, seed)
+        assert len(one_by_one) > 50_000
+        assert run(True, seed) == one_by_one
+
+
+def test_a_block_that_fills_the_chunk_exactly_leaves_it_open():
+    """A chunk is full once a record takes it *past* its size (the library's rule): a block
+    whose record ends exactly at the size leaves the chunk open, as add() does."""
+    prefix = b"\x00\x01\x00\x00" + b"p" * 4
+
+    def run(grouped: bool, chunk_size: int) -> tuple[bytes, int]:
+        out = io.BytesIO()
+        w = ChunkWriter(out, chunk_size=chunk_size)
+        w.start(profile="ros2", library="test")
+        ids = [w.register_channel(f"/c{i}", "cdr", 0, {}) for i in range(3)]
+        opened = len(w._chunk)  # the channel records
+        group = w.group([(ch, prefix, 16) for ch in ids])
+        values = np.arange(60, dtype="<f8").reshape(10, 3, 2)
+        times = [np.arange(10, dtype=np.int64) * 1000 for _ in ids]
+        if grouped:
+            group.add_steps(times, [values[:, i].tobytes() for i in range(3)])
+        else:
+            for j in range(10):
+                for i, ch in enumerate(ids):
+                    w.add(ch, int(times[i][j]), prefix + values[j, i].tobytes())
+        w.finish()
+        return out.getvalue(), opened
+
+    _, opened = run(False, 1 << 20)
+    record = 31 + len(prefix) + 16
+    for size in (opened + 9 * record, opened + 9 * record - 1, opened + 9 * record + 1):
+        one_by_one, _ = run(False, size)
+        assert run(True, size)[0] == one_by_one
 
 
 def lib_messages(path) -> list[tuple]:
@@ -183,7 +233,7 @@ def test_the_fast_recording_path_writes_what_the_message_path_writes(tmp_path):
             record_tools=True,
             live=lambda key, t, data: None,  # a second sink: the message-by-message path
         )
-        run_inprocess(sc, switches=switches, sinks=[rec.record_step])
+        run_inprocess(sc, switches=switches, sinks=[rec.record_rows])
         rec.finish()
 
     def masked(messages):  # the measured compute time aside
@@ -199,6 +249,75 @@ def test_the_fast_recording_path_writes_what_the_message_path_writes(tmp_path):
     assert len(fast) > 15_000 and fast == slow
     events = [m for m in fast if m[0] == "/parameter_events"]
     assert [m[1] for m in events] == [1337 * 50_000, 2001 * 50_000]
+
+
+def test_a_node_recorder_takes_a_batch_at_once_as_it_takes_it_message_by_message(tmp_path):
+    """A node's recorder decodes a batch's records at once and sums their steps' running
+    metrics at once; the bag is the one it writes taking every message in turn (its path with
+    a live view): messages, times, sequence numbers, the order (reference k before state k,
+    tool messages after the state), the diagnostics after the message that completed their
+    period, across batches of odd sizes, with a parameter change, a command of another
+    version's layout and a command that never came in between."""
+    from predictive_drive.bag import BagWriter
+    from predictive_drive.codec import CODECS, MultiArrayCodec, encode_parameter_event
+    from predictive_drive.config import load_scenario
+    from predictive_drive.core.control import strategy_names
+    from predictive_drive.core.runner import run_inprocess
+    from predictive_drive.interface import TOPICS
+    from predictive_drive.recording import RunRecorder, bag_info, tool_every, tool_messages
+
+    sc = load_scenario("im_short", strategy="mptc", duration=0.25)
+    tr = run_inprocess(sc, switches=[(1337, "db_mptc")])
+    n = tr.steps
+    every = tool_every(sc.ts)
+    old = tuple(f for f in TOPICS["command"].fields if f != "mtpa_gradient")
+    messages: list[tuple[str, bytes]] = [("reference", CODECS["reference"].encode(tr.reference[0]))]
+    for k in range(n + 1):
+        state = tuple(tr.state[k])
+        messages.append(("state", CODECS["state"].encode(state)))
+        messages += [(key, data) for key, _, data in tool_messages(state, every)]
+        if k < n:
+            command = tuple(tr.command[k])
+            if k == 3001:  # a command of another version's layout
+                data = MultiArrayCodec(old).encode(command[: len(old)])
+            else:
+                data = CODECS["command"].encode(command)
+            # reference k+1 comes before command k now and then (the speed PI is quicker)
+            ref = ("reference", CODECS["reference"].encode(tr.reference[k + 1]))
+            if k == 3999:  # a command that never came: step 3999 is never complete
+                messages.append(ref)
+            else:
+                messages += [ref, ("command", data)] if k % 7 == 0 else [("command", data), ref]
+        if k == 1337:
+            event = encode_parameter_event(k * sc.ts, "/drive/torque_controller", [("x", 1)])
+            messages.append(("parameter_events", event))
+
+    def record(name: str, live) -> list[tuple]:
+        with BagWriter(tmp_path / name, info=bag_info(sc, "ros")) as w:
+            rec = RunRecorder(
+                w,
+                ts=sc.ts,
+                steps=n,
+                torque_limit=sc.speed_pi.torque_limit,
+                strategy_names=strategy_names(sc.family),
+                record_tools=False,
+                live=live,
+            )
+            i = 0
+            for size in [1, 2, 384, 97, 1000, 5] * 400:
+                if i >= len(messages):
+                    break
+                rec.take(messages[i : i + size])
+                rec.flush()
+                i += size
+            rec.finish()
+        return lib_messages(tmp_path / name / f"{name}_0.mcap")
+
+    each = record("each", live=lambda key, t, data: None)  # message by message
+    once = record("once", live=None)
+    assert len(each) > 15_000 and once == each
+    assert sum(m[0] == "/diagnostics" for m in once) >= 3
+    assert sum(m[0] == "/parameter_events" for m in once) == 1
 
 
 def test_read_bag_decodes_what_the_mcap_library_decodes(tmp_path):

@@ -58,11 +58,15 @@ __all__ = [
     "repair_bag",
 ]
 
-#: a chunk is sealed when it holds this many bytes, then compressed and written (and flushed to
-#: the OS) by the writer's own thread while the next one fills: a writer killed outright loses
-#: at most the chunk it was filling and the one in flight, ~420 steps of a 20 kHz run (21 ms
-#: simulated; ~620 bytes a step)
-CHUNK_SIZE = 128 * 1024
+#: a chunk is sealed when it holds this many bytes, then compressed with zstd at ZSTD_LEVEL and
+#: written (and flushed to the OS) by the writer's own thread while the next one fills: the mcap
+#: C++ writer's defaults, which rosbag2's MCAP plugin records with (768 KiB, its "default" zstd
+#: level, 1). A run killed outright loses what had not reached the file: the chunk it was
+#: filling, the one in flight and, in-process, the steps not yet handed to the recorder
+#: (core.runner.SINK_BATCH); ~3,000 steps of a 20 kHz run at most (0.15 s simulated; ~620
+#: bytes a step)
+CHUNK_SIZE = 768 * 1024
+ZSTD_LEVEL = 1
 META_NAME = "predictive_drive"
 #: a bag directory may hold this folder besides the recording: the node logs of the run
 LOGS_DIR = "logs"
@@ -230,7 +234,9 @@ class BagWriter:
             self._file = _FlushingFile(self.path)
         except OSError as e:
             raise BagError(f"cannot write the bag {self.directory}: {e.strerror}") from None
-        self._writer = ChunkWriter(self._file, chunk_size=CHUNK_SIZE, background=True)
+        self._writer = ChunkWriter(
+            self._file, chunk_size=CHUNK_SIZE, level=ZSTD_LEVEL, background=True
+        )
         try:
             self._start(info, stamp)
         except BaseException as e:
@@ -283,11 +289,18 @@ class BagWriter:
         except OSError as e:
             raise self.write_failed(e) from None
 
-    def group(self, parts: Sequence[tuple[str, bytes, int]]) -> MessageGroup:
+    def group(self, parts: Sequence[tuple[str, bytes, int]], extras_after: int = 0) -> MessageGroup:
         """Messages written together (:class:`~.mcapio.MessageGroup`): (topic key, payload
-        prefix, bytes after it) each. Its ``add`` raises OSError: pass it to
-        :meth:`write_failed`."""
-        return self._writer.group([(self._channels[key], p, n) for key, p, n in parts])
+        prefix, bytes after it) each, other messages after part ``extras_after``. Its
+        ``add_steps`` raises OSError: pass it to :meth:`write_failed`."""
+        return self._writer.group(
+            [(self._channels[key], p, n) for key, p, n in parts], extras_after
+        )
+
+    def channel(self, topic_key: str) -> int:
+        """The MCAP channel id of a topic (for :meth:`~.mcapio.MessageGroup.add_steps`' extra
+        messages)."""
+        return self._channels[topic_key]
 
     def write_failed(self, e: OSError) -> BagError:
         """The error to raise for a write that failed (the bag takes nothing more)."""
@@ -355,8 +368,9 @@ class BagWriter:
                     f"up to its last complete chunk: `predictive-drive repair {self.directory}` "
                     f"rebuilds one from that"
                 ) from None
+            self._failed = f"{e.strerror or e}"  # what `failure` tells
             raise BagError(
-                f"closing the bag {self.directory} failed ({e.strerror or e}): it has no index; "
+                f"closing the bag {self.directory} failed ({self._failed}): it has no index; "
                 f"`predictive-drive repair {self.directory}` rebuilds one from what it holds"
             ) from None
 

@@ -4,11 +4,14 @@ The ``mcap`` library builds every message through a record object and a ``BytesI
 every record through a byte stream; for the ~3 messages a step of a 20 kHz drive that costs more
 than simulating it. Here the hot paths are our own and everything rare is the library's:
 
-- :class:`ChunkWriter` appends each message to the open chunk with one ``struct`` pack and keeps
-  the message index and statistics as plain lists and counters; headers, schemas, channels,
-  metadata, chunk and index records and the summary are the library's record classes. With the
-  same calls it writes a file byte for byte equal to ``mcap.writer.Writer``'s (chunked, zstd,
-  every index, statistics, summary offsets, CRCs on; ``test_mcapio.py`` holds it to that).
+- :class:`ChunkWriter` appends each message to the open chunk with one ``struct`` pack, or a
+  block of records at once (:class:`MessageGroup`: the state, reference and command of hundreds
+  of steps, and the tool messages among them, built in one numpy array), and keeps the message
+  index and statistics as plain lists and counters; headers, schemas, channels, metadata, chunk
+  and index records and the summary are the library's record classes. With the same calls it
+  writes a file byte for byte equal to ``mcap.writer.Writer``'s (chunked, zstd at the library's
+  level, every index, statistics, summary offsets, CRCs on; ``test_mcapio.py`` holds it to
+  that, blocks included).
 - :func:`read_file` walks a file's top-level records, decompresses each chunk whole and notes
   where each message lies, so a caller can decode a channel of fixed-size messages in one numpy
   gather (:meth:`Messages.payloads`). A file cut short is read up to its last whole chunk, as the
@@ -54,6 +57,8 @@ _MESSAGE_FIELDS = struct.Struct("<HIQQ")
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed crc
 #: a chunk record up to its compression string: opcode, length, the head, the string's length
 _CHUNK_RECORD = struct.Struct("<BQQQQII")
+#: a message index record's head: opcode, record length, channel, the entries' byte length
+_INDEX_HEAD = struct.Struct("<BQHI")
 
 
 class ChunkWriter:
@@ -62,19 +67,29 @@ class ChunkWriter:
     when full. Call :meth:`start`, register schemas and channels, add messages and metadata,
     then :meth:`finish`. An ``OSError`` of ``out`` reaches the caller as it happens."""
 
-    def __init__(self, out: IO[bytes] | Any, *, chunk_size: int, background: bool = False) -> None:
-        """``background``: a thread of its own compresses and writes each full chunk while the
-        caller goes on filling the next (zstd and the file release the GIL); one chunk is in
-        flight at most. Call :meth:`close` when done (``finish`` does not)."""
+    def __init__(
+        self,
+        out: IO[bytes] | Any,
+        *,
+        chunk_size: int,
+        level: int = 3,
+        background: bool = False,
+    ) -> None:
+        """``level``: zstd's compression level (3: what ``zstandard.compress()`` and so the
+        ``mcap`` library's writer use); ``background``: a thread of its own compresses and
+        writes each full chunk while the caller goes on filling the next (zstd and the file
+        release the GIL); one chunk is in flight at most. Call :meth:`close` when done
+        (``finish`` does not)."""
         self._out = out
         self._pool = ThreadPoolExecutor(1, "mcap-chunks") if background else None
         if background:
             _quick_switch(+1)
         self._pending: tuple[Future[tuple[bytes, int]], Any] | None = None
         self._chunk_size = chunk_size
-        self._zstd = zstandard.ZstdCompressor(level=3)  # what zstandard.compress() uses
+        self._zstd = zstandard.ZstdCompressor(level=level)
         self._chunk = bytearray()
-        self._index: dict[int, list[int]] = {}  #: channel → [log time, offset, ...] this chunk
+        #: channel → (log times, offsets) of its messages in the open chunk
+        self._index: dict[int, tuple[list[int], list[int]]] = {}
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
         #: messages by channel id (index 0 unused): the last sequence number :meth:`add` gave
@@ -124,16 +139,67 @@ class ChunkWriter:
         chunk = self._chunk
         index = self._index.get(channel_id)
         if index is None:
-            index = self._index[channel_id] = []
-        index += (log_time, len(chunk))
+            index = self._index[channel_id] = ([], [])
+        index[0].append(log_time)
+        index[1].append(len(chunk))
         chunk += _MESSAGE.pack(5, 22 + len(data), channel_id, sequence, log_time, publish_time)
         chunk += data
         if len(chunk) > self._chunk_size:
             self._finalize()
 
-    def group(self, parts: Sequence[tuple[int, bytes, int]]) -> MessageGroup:
+    def add_block(
+        self, block: bytes | memoryview, by_channel: dict[int, tuple[np.ndarray, np.ndarray]]
+    ) -> None:
+        """Message records one after another (each channel's next sequence numbers already in
+        them): ``by_channel`` gives each channel's log times and where its records begin in
+        ``block``, in order (every record of the block is one of them). The same as
+        :meth:`add_message` of each in turn: a chunk ends after the record that takes it past
+        its size."""
+        for ch, (ts, _) in by_channel.items():
+            self.counts[ch] += len(ts)
+        size = len(block)
+        if len(self._chunk) + size <= self._chunk_size:  # no record ends past the size
+            self._index_block(by_channel, 0, size, len(self._chunk))
+            self._chunk += block
+            return
+        begins = np.sort(np.concatenate([offsets for _, offsets in by_channel.values()]))
+        ends = np.append(begins[1:], size)
+        done = 0  #: bytes of the block in chunks already
+        while done < size:
+            base = len(self._chunk) - done  #: a block offset's place in the open chunk
+            # the record after which the chunk is full: the first to end past its size
+            full = int(np.searchsorted(ends, self._chunk_size - base, side="right"))
+            cut = int(ends[full]) if full < len(ends) else size
+            self._index_block(by_channel, done, cut, base)
+            self._chunk += block[done:cut]
+            done = cut
+            if full < len(ends):
+                self._finalize()
+
+    def _index_block(
+        self, by_channel: dict[int, tuple[np.ndarray, np.ndarray]], start: int, end: int, base: int
+    ) -> None:
+        """The index entries of a block's records that begin in [start, end), at ``base`` +
+        their offset in the open chunk; channels new to the chunk in the order of their first
+        record."""
+        part = []
+        for ch, (ts, offsets) in by_channel.items():
+            i, j = np.searchsorted(offsets, (start, end)).tolist()
+            if j > i:
+                part.append((int(offsets[i]), ch, ts[i:j], offsets[i:j]))
+        if len(part) > 1:
+            part.sort()
+        index = self._index
+        for _, ch, ts, offsets in part:
+            entry = index.get(ch)
+            if entry is None:
+                entry = index[ch] = ([], [])
+            entry[0].extend(ts.tolist())
+            entry[1].extend((offsets + base).tolist())
+
+    def group(self, parts: Sequence[tuple[int, bytes, int]], extras_after: int = 0) -> MessageGroup:
         """A :class:`MessageGroup` of (channel id, payload prefix, bytes after it) parts."""
-        return MessageGroup(self, parts)
+        return MessageGroup(self, parts, extras_after)
 
     @property
     def message_count(self) -> int:
@@ -143,14 +209,14 @@ class ChunkWriter:
     def first_time(self) -> int | None:
         """The earliest log time written (None before the first message)."""
         times = [start for start, _ in self._bounds]
-        times += (min(entries[::2]) for entries in self._index.values())
+        times += (min(ts) for ts, _ in self._index.values())
         return min(times, default=None)
 
     @property
     def last_time(self) -> int:
         """The latest log time written (0 before the first message)."""
         times = [end for _, end in self._bounds]
-        times += (max(entries[::2]) for entries in self._index.values())
+        times += (max(ts) for ts, _ in self._index.values())
         return max(times, default=0)
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
@@ -216,11 +282,12 @@ class ChunkWriter:
         the one after it is sealed (or at :meth:`drain`), so one chunk waits at most."""
         if not self._index:
             return
-        times = [t for entries in self._index.values() for t in entries[::2]]
+        first = min(min(ts) for ts, _ in self._index.values())
+        last = max(max(ts) for ts, _ in self._index.values())
         for channel_id in self._index:
             self._first_seen.setdefault(channel_id, None)
         raw = bytes(self._chunk)
-        sealed = (raw, self._index, min(times), max(times))
+        sealed = (raw, self._index, first, last)
         self._bounds.append(sealed[2:])
         self._chunk = bytearray()
         self._index = {}
@@ -249,7 +316,7 @@ class ChunkWriter:
         self,
         packed: tuple[bytes, int],
         raw: bytes,
-        index: dict[int, list[int]],
+        index: dict[int, tuple[list[int], list[int]]],
         start: int,
         end: int,
     ) -> None:
@@ -266,22 +333,26 @@ class ChunkWriter:
         )
         chunk_offset = self._out.tell()
         record_length = len(head) + len(compression) + 8 + len(compressed)
-        # each channel's message index record (mcap.records.MessageIndex) in one pack
-        parts = []
+        # each channel's message index record (mcap.records.MessageIndex): (time, offset) pairs
+        parts: list[bytes] = []
         offsets = {}
         at = chunk_offset + record_length
-        for channel_id, entries in index.items():
-            n = len(entries)
-            part = struct.pack(
-                f"<BQHI{n}Q", Opcode.MESSAGE_INDEX, 6 + 8 * n, channel_id, 8 * n, *entries
-            )
+        for channel_id, (ts, where) in index.items():
+            n = len(ts)
+            entries = np.empty(2 * n, dtype="<u8")
+            entries[0::2] = ts
+            entries[1::2] = where
+            part = _INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 6 + 16 * n, channel_id, 16 * n)
             offsets[channel_id] = at
-            at += len(part)
-            parts.append(part)
+            at += len(part) + 16 * n
+            parts += (part, entries.tobytes())
         index_bytes = b"".join(parts)
-        self._out.write(b"".join((head, compression, struct.pack("<Q", len(compressed)))))
-        self._out.write(compressed)
-        self._out.write(index_bytes)
+        # one write: the chunk record and its message indexes
+        self._out.write(
+            b"".join(
+                (head, compression, struct.pack("<Q", len(compressed)), compressed, index_bytes)
+            )
+        )
         self._chunk_indexes.append(
             ChunkIndex(
                 message_start_time=start,
@@ -301,72 +372,104 @@ class ChunkWriter:
 
 
 class MessageGroup:
-    """Messages that go out together, one after another, each on its own channel with a payload
-    of a constant prefix (may be empty) then a fixed number of bytes (a step's state, reference
-    and command): :meth:`add3` packs the three with one ``struct`` call. The bytes are those
-    :meth:`ChunkWriter.add` of each message in turn writes, chunk boundaries included."""
+    """The messages of consecutive steps, each step three on channels of their own (a step's
+    state, reference and command) with a payload of a constant prefix (may be empty) then a fixed
+    number of bytes, and now and then other messages after one of a step's records (the plant's
+    tool messages). :meth:`add_steps` builds the records of many steps in one numpy array and hands
+    them to the writer as one block: the bytes are those :meth:`ChunkWriter.add` of each message
+    in turn writes, chunk boundaries included."""
 
-    def __init__(self, writer: ChunkWriter, parts: Sequence[tuple[int, bytes, int]]) -> None:
+    def __init__(
+        self, writer: ChunkWriter, parts: Sequence[tuple[int, bytes, int]], extras_after: int = 0
+    ) -> None:
         if len(parts) != 3:
             raise ValueError(f"a message group has three parts, not {len(parts)}")
         self._w = writer
-        self._parts = [(ch, prefix, _MESSAGE_HEAD + len(prefix) + n) for ch, prefix, n in parts]
-        self._struct = struct.Struct(
-            "<" + "".join(f"BQHIQQ{len(prefix)}s{n}s" for _, prefix, n in parts)
-        )
-        self._size = self._struct.size
-        self._lengths = tuple(size - 9 for _, _, size in self._parts)  #: each record's length
+        self._after = extras_after  #: the part of a step the extra messages follow
+        self._channels = [ch for ch, _, _ in parts]
+        self._sizes = [n for _, _, n in parts]  #: each payload's bytes after its prefix
+        fields: list[tuple[str, Any]] = []
+        for i, (_, prefix, n) in enumerate(parts):
+            fields += [(f"op{i}", "u1"), (f"len{i}", "<u8"), (f"ch{i}", "<u2")]
+            fields += [(f"seq{i}", "<u4"), (f"log{i}", "<u8"), (f"pub{i}", "<u8")]
+            if prefix:
+                fields.append((f"pre{i}", f"V{len(prefix)}"))
+            fields.append((f"body{i}", f"V{n}"))
+        self._dtype = np.dtype(fields)  # packed: no padding between fields
+        self._row = self._dtype.itemsize
+        #: where each record begins in a step's row, and where the row ends
+        self._at = np.cumsum([0] + [_MESSAGE_HEAD + len(p) + n for _, p, n in parts])
+        template = np.zeros(1, self._dtype)
+        for i, (ch, prefix, n) in enumerate(parts):
+            template[f"op{i}"] = 5
+            template[f"len{i}"] = 22 + len(prefix) + n
+            template[f"ch{i}"] = ch
+            if prefix:
+                template[f"pre{i}"] = np.frombuffer(prefix, dtype=f"V{len(prefix)}")
+        self._template = template
+        self._rows = np.repeat(template, 0)  #: the array filled last time (reused when it fits)
 
-    def add3(self, t0: int, t1: int, t2: int, v0: bytes, v1: bytes, v2: bytes) -> None:
-        """The three messages: ``v0..v2`` (each payload after its prefix) at ``t0..t2`` (log and
-        publish time). Unrolled: a 20 kHz drive's state, reference and command run through
-        here 20,000 times per simulated second."""
-        w = self._w
-        chunk = w._chunk
-        off = len(chunk)
-        if off + self._size > w._chunk_size:  # the chunk fills within the group: one by one
-            for (ch, prefix, _), t, v in zip(self._parts, (t0, t1, t2), (v0, v1, v2)):
-                w.add(ch, t, prefix + v)
+    def add_steps(
+        self,
+        times: Sequence[np.ndarray],
+        payloads: Sequence[bytes | bytearray | memoryview],
+        extras: Sequence[tuple[int, Sequence[tuple[int, int, bytes]]]] = (),
+    ) -> None:
+        """``n`` steps: ``times[j]`` the log (and publish) times of part ``j``'s messages (int64
+        ns), ``payloads[j]`` their bytes after the prefix, one after another. ``extras``: (step,
+        [(channel, time, payload), ...]) in step order, messages written right after that step's
+        part ``extras_after`` (on channels other than the group's)."""
+        n = len(times[0])
+        if n == 0:
             return
-        (c0, p0, n0), (c1, p1, n1), (c2, p2, _) = self._parts
-        counts, index_of = w.counts, w._index
-        s0 = counts[c0] = counts[c0] + 1
-        s1 = counts[c1] = counts[c1] + 1
-        s2 = counts[c2] = counts[c2] + 1
-        if c0 in index_of and c1 in index_of and c2 in index_of:
-            index_of[c0] += (t0, off)
-            index_of[c1] += (t1, off + n0)
-            index_of[c2] += (t2, off + n0 + n1)
-        else:  # the first of a channel's messages in this chunk
-            for c, t, o in ((c0, t0, off), (c1, t1, off + n0), (c2, t2, off + n0 + n1)):
-                index_of.setdefault(c, []).extend((t, o))
-        l0, l1, l2 = self._lengths
-        chunk += self._struct.pack(
-            5,
-            l0,
-            c0,
-            s0,
-            t0,
-            t0,
-            p0,
-            v0,
-            5,
-            l1,
-            c1,
-            s1,
-            t1,
-            t1,
-            p1,
-            v1,
-            5,
-            l2,
-            c2,
-            s2,
-            t2,
-            t2,
-            p2,
-            v2,
-        )
+        w = self._w
+        if len(self._rows) < n:
+            self._rows = np.repeat(self._template, n)
+        rows = self._rows[:n]
+        counts = w.counts
+        for j, ch in enumerate(self._channels):
+            rows[f"seq{j}"] = np.arange(counts[ch] + 1, counts[ch] + 1 + n, dtype=np.uint32)
+            rows[f"log{j}"] = times[j]
+            rows[f"pub{j}"] = times[j]
+            rows[f"body{j}"] = np.frombuffer(payloads[j], dtype=f"V{self._sizes[j]}")
+        raw = rows.view(np.uint8).data
+        starts = np.arange(n, dtype=np.int64) * self._row
+        if not extras:
+            w.add_block(
+                raw, {ch: (times[j], starts + self._at[j]) for j, ch in enumerate(self._channels)}
+            )
+            return
+        # the extra messages go in after their steps' part extras_after: the rows are cut there
+        grown = np.zeros(n, dtype=np.int64)  #: the extra bytes inside each step's row
+        after = self._after
+        cut_at = int(self._at[after + 1])
+        pieces: list[Any] = []
+        extra: dict[int, tuple[list[int], list[int]]] = {}  #: channel → times, offsets
+        at = shift = 0
+        for step, messages in extras:
+            cut = step * self._row + cut_at
+            pieces.append(raw[at:cut])
+            at = cut
+            pos = cut + shift
+            for ch, t, data in messages:
+                sequence = w.counts[ch] + len(extra.get(ch, ((), ()))[0]) + 1
+                record = _MESSAGE.pack(5, 22 + len(data), ch, sequence, t, t) + data
+                pieces.append(record)
+                ts, offsets = extra.setdefault(ch, ([], []))
+                ts.append(t)
+                offsets.append(pos)
+                pos += len(record)
+            grown[step] = pos - cut - shift
+            shift = pos - cut
+        pieces.append(raw[at:])
+        before = np.cumsum(grown) - grown  #: extra bytes before each step's row
+        by_channel = {
+            ch: (times[j], starts + self._at[j] + (before if j <= after else before + grown))
+            for j, ch in enumerate(self._channels)
+        }
+        for ch, (ts, offsets) in extra.items():
+            by_channel[ch] = (np.asarray(ts, dtype=np.int64), np.asarray(offsets, dtype=np.int64))
+        w.add_block(b"".join(pieces), by_channel)
 
 
 #: writers with a compressing thread, and the switch interval before the first of them

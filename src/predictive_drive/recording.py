@@ -44,7 +44,14 @@ from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
 from .core.signals import COMMAND_INDEX, STATE_INDEX, strategy_name
 from .core.timebase import every_steps
-from .interface import CLOCK_PERIOD, RECORD_TOPICS, TOOL_TOPICS, TOPICS, node_name
+from .interface import (
+    CLOCK_PERIOD,
+    RECORD_TOPICS,
+    RECORDING_WINDOW,
+    TOOL_TOPICS,
+    TOPICS,
+    node_name,
+)
 from .mcapio import MessageGroup
 
 __all__ = [
@@ -173,11 +180,29 @@ def _same_strategy(a: float, b: float) -> bool:
 #: the topics a node's recorder receives each in order but not in order with one another: the
 #: per-step records and the plant's tool topics
 _STREAMS = ("state", "reference", "command", *TOOL_TOPICS)
-#: an in-process step as :meth:`RunRecorder.record_step` takes it: state, reference, command
-#: (None after the last step), and the three packed
-Step = tuple[Any, ...]
-#: in-process steps written together (:meth:`RunRecorder.record_step`): 6 ms of a 20 kHz run
-STEP_BATCH = 128
+#: a step's records in the order a node's recorder receives them (indices into state, reference,
+#: command): reference k was made from state k-1, command k from state k
+_ARRIVAL = (1, 0, 2)
+#: steps after which a record still waiting for its step's others is let go (a node's recorder)
+_UNPAIRED_HORIZON = 10 * RECORDING_WINDOW
+#: record name by topic key
+_RECORD_OF = {key: record for record, key in RECORD_TOPICS.items()}
+
+
+def _decoded_rows(key: str, payloads: list[bytes]) -> np.ndarray:
+    """The values of messages of topic ``key`` as rows: in one numpy call when every one has
+    exactly this version's layout, else message by message (a labelled layout of another
+    version is read by field name)."""
+    codec = CODECS[key]
+    if not payloads:
+        return np.empty((0, len(codec.fields)))
+    joined = b"".join(payloads)
+    if len(joined) == codec.size * len(payloads):
+        raw = np.frombuffer(joined, dtype=np.uint8).reshape(len(payloads), codec.size)
+        head = len(codec.prefix)
+        if (raw[:, :head] == np.frombuffer(codec.prefix, dtype=np.uint8)).all():
+            return raw[:, head:].copy().view("<f8")
+    return np.array([codec.decode(data) for data in payloads], dtype=np.float64)
 
 
 class RunRecorder:
@@ -221,128 +246,133 @@ class RunRecorder:
         #: the last log time seen on each topic the recorder waits on (each comes in order);
         #: none in-process, whose records come in time order
         self._seen = {} if record_tools else dict.fromkeys(_STREAMS, -1)
-        self._released = -1
+        self._through_ns = -1  #: see _released
+        #: node path: records taken whose step's others have not come yet, in order, and where
+        #: each came in the batch that brought it (-1: a batch before)
+        self._unpaired = {
+            r: (np.empty((0, len(CODECS[key].fields))), np.empty(0, dtype=np.int64))
+            for r, key in RECORD_TOPICS.items()
+        }
+        #: node path: the last step taken of each record
+        self.last_k = {"state": -1, "reference": -1, "command": -1}
         self._warned = ""
         self._finished = False
         self._spans: list[StrategySpan] = []  #: the last one's end is ``_through``
         self._index = _NO_SPAN  #: the strategy index of the last span
         self._through = -1
-        self._batch: list[Step] = []  #: steps taken, not yet written
         keys = [RECORD_TOPICS[r] for r in ("state", "reference", "command")]
         self._sizes = tuple(CODECS[key].size for key in keys)
-        #: a step's state, reference and command written as one group: in a node, the messages
-        #: as received (see flush); in-process without a live view, the packed rows after each
-        #: record's constant prefix (see record_step); with a live view, message by message
+        self._widths = tuple(len(CODECS[key].fields) for key in keys)
+        #: a step's records written as one group: in a node, the messages as received, in the
+        #: order they come in (reference k comes before state k: the speed PI made it from state
+        #: k-1), the plant's tool messages after the state (see flush); in-process without a
+        #: live view, state, tool messages, reference, command, the packed rows after each
+        #: record's constant prefix (see record_rows); with a live view, message by message
         self._group: MessageGroup | None = None
         if not record_tools:
-            self._group = writer.group([(key, b"", size) for key, size in zip(keys, self._sizes)])
+            self._group = writer.group(
+                [(keys[p], b"", self._sizes[p]) for p in _ARRIVAL], extras_after=1
+            )
         elif live is None:
             self._group = writer.group(
                 [(key, CODECS[key].prefix, 8 * len(CODECS[key].fields)) for key in keys]
             )
+        self._tool_channels = {key: writer.channel(key) for key in TOOL_TOPICS}
         self._prefix_state = CODECS[RECORD_TOPICS["state"]].prefix
         self._prefix_reference = CODECS[RECORD_TOPICS["reference"]].prefix
         self._prefix_command = CODECS[RECORD_TOPICS["command"]].prefix
 
-    def record_step(
-        self,
-        state: tuple[float, ...],
-        ref: tuple[float, ...],
-        cmd: tuple[float, ...] | None,
-        state_b: bytes,
-        ref_b: bytes,
-        cmd_b: bytes,
-    ) -> None:  # a core.runner.Sink
-        """In-process path (a :data:`~.core.runner.Sink`): step k's state (with the plant's tool
-        messages), reference and command (None after the last step), encoded and written in
-        that order, as the graph's recorder writes them; ``*_b``: the rows packed (a message's
-        payload after its constant prefix). Steps are taken :data:`STEP_BATCH` at a time (the
-        work then runs in a tight loop, about twice as fast as spread between the steps of the
-        simulation); :meth:`finish` takes the rest."""
-        batch = self._batch
-        batch.append((state, ref, cmd, state_b, ref_b, cmd_b))
-        if len(batch) >= STEP_BATCH or cmd is None:
-            self._write_steps()
-
-    def _write_steps(self) -> None:
-        batch, self._batch = self._batch, []
-        if self._group is None:
-            for step in batch:
-                self._write_step(step)
-            return
-        i, n = 0, len(batch)
-        while i < n:
-            if not self._plain(batch[i], self._through + 1):
-                self._write_step(batch[i])  # a new span or the last step
+    def record_rows(self, states: bytes, references: bytes, commands: bytes) -> None:
+        """In-process path (a :data:`~.core.runner.Sink`): the rows of consecutive steps, packed
+        as the trace packs them; each step's state (with the plant's tool messages), reference
+        and command are written in that order, as the graph's recorder writes them, and the
+        run's final state and reference (no command) close it. The steps of one strategy go
+        out as one block, their running metrics summed at once; a step that starts a span, and
+        every step when a live view watches too, message by message."""
+        s, r, c = (
+            np.frombuffer(rows, dtype="<f8").reshape(-1, width)
+            for rows, width in zip((states, references, commands), self._widths)
+        )
+        steps = min(len(s), len(r))  # a run cut short may end between a step's records
+        commanded = min(steps, len(c))
+        views = [memoryview(rows) for rows in (states, references, commands)]
+        sizes = [8 * width for width in self._widths]
+        strategy = c[:, COMMAND_INDEX.strategy]
+        i = 0
+        while i < commanded:
+            if self._group is None or not _same_strategy(float(strategy[i]), self._index):
+                self._write_step(
+                    s[i], r[i], c[i], *(v[i * n : (i + 1) * n] for v, n in zip(views, sizes))
+                )
                 i += 1
                 continue
-            # the plain steps that follow, up to the end of a diagnostics period
-            j = i + 1
-            room = self.live.every - self.live.steps % self.live.every
-            while j < n and j - i < room and self._plain(batch[j], int(batch[j - 1][2][K]) + 1):
-                j += 1
-            self._write_plain_steps(batch[i:j])
+            # the steps of this span, up to the end of a diagnostics period
+            rest = strategy[i:commanded]
+            same = np.isnan(rest) if math.isnan(self._index) else rest == self._index
+            j = i + (int(np.argmin(same)) if not same.all() else len(rest))
+            j = min(j, i + self.live.every - self.live.steps % self.live.every)
+            self._write_plain_steps(
+                s[i:j], r[i:j], c[i:j], *(v[i * n : j * n] for v, n in zip(views, sizes))
+            )
             i = j
+        if steps > commanded:  # the final state and reference
+            i = commanded
+            self._write_step(
+                s[i],
+                r[i],
+                None,
+                views[0][i * sizes[0] : (i + 1) * sizes[0]],
+                views[1][i * sizes[1] : (i + 1) * sizes[1]],
+                b"",
+            )
 
-    def _plain(self, step: Step, k_next: int) -> bool:
-        """A step that only goes on: a command, the strategy in force (step ``k_next`` of its
-        span), not the first of a span."""
-        cmd = step[2]
-        return (
-            cmd is not None
-            and _same_strategy(cmd[COMMAND_INDEX.strategy], self._index)
-            and int(cmd[K]) == k_next
-        )
-
-    def _write_plain_steps(self, steps: list[Step]) -> None:
-        """Consecutive steps of one span: each step's three records in one pack (with the tool
-        messages between state and reference where they come), the running metrics of them all
-        at once."""
-        s, r, c = (
-            np.frombuffer(b"".join(step[n] for step in steps), dtype="<f8").reshape(len(steps), -1)
-            for n in (3, 4, 5)
-        )
-        ns = [np.rint(x[:, T] * 1e9).astype(np.int64).tolist() for x in (s, r, c)]
-        add3 = self._group.add3  # type: ignore[union-attr]
+    def _write_plain_steps(
+        self, s: np.ndarray, r: np.ndarray, c: np.ndarray, *payloads: Any
+    ) -> None:
+        """Consecutive steps of one span: their records in one block (with the tool messages
+        after the states they come with), the running metrics of them all at once."""
+        ns = [np.rint(x[:, T] * 1e9).astype(np.int64) for x in (s, r, c)]
         every = self._every
+        extras = []
+        for j in np.flatnonzero(s[:, K] % every == 0).tolist():
+            tools = tool_messages(s[j].tolist(), every)
+            extras.append((j, [(self._tool_channels[key], t, data) for key, t, data in tools]))
         try:
-            for k, ts, tr, tc, step in zip(s[:, K].tolist(), *ns, steps):
-                if k % every:
-                    add3(ts, tr, tc, *step[3:])
-                else:
-                    self._write_messages(step, ts, tr, tc)
+            self._group.add_steps(ns, payloads, extras)  # type: ignore[union-attr]
         except OSError as e:
             raise self.writer.write_failed(e) from None
         t = float(max(s[-1, T], r[-1, T], c[-1, T]))
         if t > self.last_t:
             self.last_t = t
-        self._through = int(c[-1, K])  # the span goes on (see _plain)
+        self._through = int(c[-1, K])  # the span goes on
         snap = self.live.add_steps(s, r, c)
         if snap is not None:
             self._diagnose(snap)
 
-    def _write_messages(self, step: Step, ts: int, tr: int, tc: int) -> None:
-        """A step's messages one by one: state, the plant's tool messages where they come,
-        reference, command (none after the last step)."""
-        write = self._hold
-        write("state", ts, self._prefix_state + step[3])
-        if self._tools and not int(step[0][K]) % self._every:
-            for tkey, tns, data in tool_messages(step[0], self._every):
-                write(tkey, tns, data)
-        write("reference", tr, self._prefix_reference + step[4])
-        if step[2] is not None:
-            write("command", tc, self._prefix_command + step[5])
-
-    def _write_step(self, step: Step) -> None:
+    def _write_step(
+        self,
+        s: np.ndarray,
+        r: np.ndarray,
+        c: np.ndarray | None,
+        sb: Any,
+        rb: Any,
+        cb: Any,
+    ) -> None:
         """One step, messages and running metrics (a new span, the last step, a live view)."""
-        state, ref, cmd = step[:3]
-        tc = stamp_ns(cmd[T]) if cmd is not None else 0
-        self._write_messages(step, stamp_ns(state[T]), stamp_ns(ref[T]), tc)
+        state, ref = tuple(s.tolist()), tuple(r.tolist())
+        write = self._hold
+        write("state", stamp_ns(state[T]), self._prefix_state + bytes(sb))
+        if self._tools and not int(state[K]) % self._every:
+            for tkey, tns, data in tool_messages(state, self._every):
+                write(tkey, tns, data)
+        write("reference", stamp_ns(ref[T]), self._prefix_reference + bytes(rb))
         t = max(state[T], ref[T])
-        if cmd is None:
+        if c is None:
             if t > self.last_t:
                 self.last_t = t
             return
+        cmd = tuple(c.tolist())
+        write("command", stamp_ns(cmd[T]), self._prefix_command + bytes(cb))
         t = max(t, cmd[T])
         if t > self.last_t:
             self.last_t = t
@@ -356,25 +386,161 @@ class RunRecorder:
         if snap is not None:
             self._diagnose(snap)
 
-    def record_raw(self, record: str, data: bytes) -> tuple[float, ...]:
-        """Node path: write the bytes as received, decode for the running metrics."""
-        key = RECORD_TOPICS[record]
-        row = CODECS[key].decode(data)
-        ns = stamp_ns(row[T])
-        self._hold(key, ns, data)
-        self._feed(record, row, ns)
-        return row
+    def take(self, taken: list[tuple[str, bytes]]) -> None:
+        """Node path: messages as the node took them, in the order they came, by topic key: the
+        per-step records (written as received, decoded for the running metrics), the plant's
+        tool messages, and accepted parameter changes (see :meth:`record_event`). Each is held
+        for its place in log-time order (written by :meth:`flush`). A 20 kHz drive's ~60,000
+        messages a simulated second pass here: the records of a batch are decoded and their
+        steps' running metrics summed at once (:meth:`_take_batch`); with a live view, which
+        sees every message as it comes, message by message (the same bag)."""
+        if self._live is None:
+            self._take_batch(taken)
+        else:
+            self._take_each(taken)
 
-    def record_tool(self, key: str, data: bytes) -> None:
-        """Node path: /clock or /drive/joint_states as the plant published it."""
-        ns = tool_stamp_ns(data)
-        self._hold(key, ns, data)
-        self._advance(key, ns)
+    def _take_each(self, taken: list[tuple[str, bytes]]) -> None:
+        """:meth:`take`, message by message."""
+        hold = self.writer.hold
+        offer = self._live
+        live = self.live.add
+        seen = self._seen
+        last_k = self.last_k
+        for key, data in taken:
+            record = _RECORD_OF.get(key)
+            if record is not None:
+                row = CODECS[key].decode(data)
+                t = row[T]
+                ns = round(t * 1e9)  # stamp_ns
+                hold(key, ns, data)
+                if offer is not None:
+                    offer(key, ns, data)
+                if t > self.last_t:
+                    self.last_t = t
+                if record == "command":
+                    self._span(int(row[K]), row[COMMAND_INDEX.strategy])
+                snap = live(record, row)
+                if snap is not None:
+                    self._diagnose(snap)
+                seen[key] = ns  # each topic comes in order: see _released
+                last_k[record] = int(row[K])
+            elif key == "parameter_events":
+                self.record_event(data)
+            else:
+                ns = tool_stamp_ns(data)
+                hold(key, ns, data)
+                if offer is not None:
+                    offer(key, ns, data)
+                seen[key] = ns
+
+    def _take_batch(self, taken: list[tuple[str, bytes]]) -> None:
+        """:meth:`take` of a batch: each topic's records decoded at once (one numpy call when
+        all have this version's layout), paired with the records of their step by k, the
+        completed steps' running metrics summed at once; then each message held in order, a
+        parameter change at the last step's time before it and a period's diagnostics right
+        after the message that completed the period — where :meth:`_take_each` holds them."""
+        where: dict[str, list[int]] = {r: [] for r in RECORD_TOPICS}
+        payloads: dict[str, list[bytes]] = {r: [] for r in RECORD_TOPICS}
+        ns_at: list[int] = [0] * len(taken)
+        t_at: list[float] = [-math.inf] * len(taken)  #: each record's time
+        for i, (key, data) in enumerate(taken):
+            record = _RECORD_OF.get(key)
+            if record is not None:
+                where[record].append(i)
+                payloads[record].append(data)
+            elif key in TOOL_TOPICS:
+                ns_at[i] = tool_stamp_ns(data)
+        for record, key in RECORD_TOPICS.items():
+            rows = _decoded_rows(key, payloads[record])
+            if len(rows):
+                ns = np.rint(rows[:, T] * 1e9).astype(np.int64).tolist()  # stamp_ns
+                for i, t, n in zip(where[record], rows[:, T].tolist(), ns):
+                    t_at[i], ns_at[i] = t, n
+                self.last_k[record] = int(rows[-1, K])
+                if record == "command":
+                    self._spans_of(rows)
+                positions = np.asarray(where[record], dtype=np.int64)
+                self._unpaired[record] = (
+                    np.concatenate([self._unpaired[record][0], rows]),
+                    np.concatenate([np.full(len(self._unpaired[record][1]), -1), positions]),
+                )
+        snaps = self._pair_steps()
+        hold = self.writer.hold
+        seen = self._seen
+        last_t = self.last_t
+        due = snaps.pop(0) if snaps else (len(taken), {})
+        for i, (key, data) in enumerate(taken):
+            if key == "parameter_events":  # record_event
+                hold(key, max(stamp_ns(last_t), self._floor()), data)
+                continue
+            ns = ns_at[i]
+            hold(key, ns, data)
+            if t_at[i] > last_t:
+                last_t = t_at[i]
+            while i == due[0]:
+                self._diagnose(due[1])
+                due = snaps.pop(0) if snaps else (len(taken), {})
+            seen[key] = ns  # each topic comes in order: see _released
+        self.last_t = last_t
+
+    def _pair_steps(self) -> list[tuple[int, dict[str, float]]]:
+        """The steps whose state, reference and command have all come (paired by k, in the
+        order of k): their running metrics, a diagnostics period at a time. Returns each
+        period's snapshot with where its last step was completed in the batch (-1: before
+        it). A record whose step's others have not come within _UNPAIRED_HORIZON steps (one
+        went missing) is let go."""
+        (s, s_at), (r, r_at), (c, c_at) = (
+            self._unpaired[x] for x in ("state", "reference", "command")
+        )
+        if not (len(s) and len(r) and len(c)):
+            return []
+        common = np.intersect1d(np.intersect1d(s[:, K], r[:, K]), c[:, K])
+        snaps: list[tuple[int, dict[str, float]]] = []
+        if len(common):
+            picks = [np.searchsorted(x[:, K], common) for x in (s, r, c)]
+            paired = [x[p] for x, p in zip((s, r, c), picks)]
+            at = np.maximum.reduce([a[p] for a, p in zip((s_at, r_at, c_at), picks)])
+            i, m = 0, len(common)
+            while i < m:
+                j = min(m, i + self.live.every - self.live.steps % self.live.every)
+                snap = self.live.add_steps(*(x[i:j] for x in paired))
+                if snap is not None:
+                    snaps.append((int(at[j - 1]), snap))
+                i = j
+        for x, (rows, came) in list(self._unpaired.items()):
+            keep = ~np.isin(rows[:, K], common)
+            if len(common):  # a record this far behind the steps paired will find no partner
+                keep &= rows[:, K] > common[-1] - _UNPAIRED_HORIZON
+            self._unpaired[x] = (rows[keep], came[keep])
+        snaps.sort(key=lambda p: p[0])
+        while snaps and snaps[0][0] < 0:  # completed by records of the batches before
+            self._diagnose(snaps.pop(0)[1])
+        return snaps
+
+    def _spans_of(self, commands: np.ndarray) -> None:
+        """The strategy spans of consecutive commands (:meth:`_span` of each, at once when
+        they go on the span in force)."""
+        index = commands[:, COMMAND_INDEX.strategy]
+        same = np.isnan(index) if math.isnan(self._index) else index == self._index
+        k = commands[:, K]
+        if same.all() and k[0] == self._through + 1 and np.all(np.diff(k) == 1):
+            self._through = int(k[-1])
+            return
+        for k_i, index_i in zip(k.tolist(), index.tolist()):
+            self._span(int(k_i), index_i)
 
     def record_event(self, data: bytes) -> None:
         """An accepted parameter change (rcl_interfaces/ParameterEvent), logged at the time it
         arrives on the simulated clock (the last step seen), as rosbag2 logs receive time."""
         self._hold("parameter_events", max(stamp_ns(self.last_t), self._floor()), data)
+
+    @property
+    def _released(self) -> int:
+        """Node path: the log time every topic the recorder waits on has passed (each topic
+        comes in order, so nothing earlier is still to come); -1 in-process."""
+        if self._seen:
+            self._through_ns = max(self._through_ns, min(self._seen.values()))
+        return self._through_ns
 
     def _floor(self) -> int:
         """The earliest log time a message made now may have: what is written or released."""
@@ -388,48 +554,55 @@ class RunRecorder:
         if self._live is not None:
             self._live(key, ns, data)
 
-    def _feed(self, record: str, row: tuple[float, ...], ns: int) -> None:
-        if row[T] > self.last_t:
-            self.last_t = row[T]
-        if record == "command":
-            self._span(int(row[K]), row[COMMAND_INDEX.strategy])
-        self._diagnose(self.live.add(record, row))
-        self._advance(record, ns)
-
-    def _advance(self, topic: str, ns: int) -> None:
-        if not self._seen:
-            return
-        self._seen[topic] = ns
-        through = min(self._seen.values())
-        if through > self._released:
-            self._released = through  # written at the next flush()
-
     def flush(self) -> None:
         """Node path: write what every topic has passed (the node calls this after each batch of
-        messages it takes; what comes later cannot be earlier), a step's state, reference and
-        command in one pack where they follow one another."""
+        messages it takes; what comes later cannot be earlier): the steps whose reference,
+        state, tool messages and command follow one another as one block, the rest one by one."""
         ready = self.writer.ready(self._released)
         write = self.writer.write
-        add3 = self._group.add3  # type: ignore[union-attr]
-        sizes = self._sizes
+        sizes = [self._sizes[p] for p in _ARRIVAL]
+        tools = self._tool_channels
+        steps: list[tuple[Any, ...]] = []  #: (reference, state, command) items of the block
+        extras: list[tuple[int, list[tuple[int, int, bytes]]]] = []
         i, n = 0, len(ready)
         try:
             while i < n:
                 t, _, key, data = ready[i]
-                if key == "state" and i + 2 < n:
-                    r, c = ready[i + 1], ready[i + 2]
+                if key == "reference" and len(data) == sizes[0] and i + 2 < n:
+                    state = ready[i + 1]
+                    j = i + 2
+                    while j < n and ready[j][2] in tools:
+                        j += 1
                     if (
-                        r[2] == "reference"
-                        and c[2] == "command"
-                        and (len(data), len(r[3]), len(c[3])) == sizes
+                        state[2] == "state"
+                        and len(state[3]) == sizes[1]
+                        and j < n
+                        and ready[j][2] == "command"
+                        and len(ready[j][3]) == sizes[2]
                     ):
-                        add3(t, r[0], c[0], data, r[3], c[3])
-                        i += 3
+                        if j > i + 2:
+                            between = [(tools[m[2]], m[0], m[3]) for m in ready[i + 2 : j]]
+                            extras.append((len(steps), between))
+                        steps.append((ready[i], state, ready[j]))
+                        i = j + 1
                         continue
+                self._write_block(steps, extras)
+                steps, extras = [], []
                 write(key, t, data)
                 i += 1
+            self._write_block(steps, extras)
         except OSError as e:
             raise self.writer.write_failed(e) from None
+
+    def _write_block(
+        self, steps: list[tuple[Any, ...]], extras: list[tuple[int, list[tuple[int, int, bytes]]]]
+    ) -> None:
+        """Node path: (reference, state, command) items of ``ready`` as one block."""
+        if not steps:
+            return
+        times = [np.array([step[p][0] for step in steps], dtype=np.int64) for p in range(3)]
+        payloads = [b"".join([step[p][3] for step in steps]) for p in range(3)]
+        self._group.add_steps(times, payloads, extras)  # type: ignore[union-attr]
 
     def _span(self, k: int, index: float) -> None:
         """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process
@@ -463,7 +636,6 @@ class RunRecorder:
         if self._finished or self.writer.failed:  # a bag that failed takes nothing more
             return
         self._finished = True
-        self._write_steps()
         self._diagnose(self.live.flush())
         total = self.live.total() or {"k": -1.0, "t": self.last_t, "steps": 0.0}
         done = int(total["steps"])

@@ -107,7 +107,7 @@ def run_inprocess_to_bag(
             )
             try:
                 trace = run_inprocess(
-                    sc, switches=switches, sinks=[rec.record_step], progress=progress
+                    sc, switches=switches, sinks=[rec.record_rows], progress=progress
                 )
             except KeyboardInterrupt:
                 rec.finish("interrupted")

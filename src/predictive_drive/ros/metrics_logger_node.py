@@ -18,7 +18,7 @@ from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice, quantity
 from ..errors import BagError
-from ..interface import NODES, RECORDED_EVERY, TOPICS, node_name
+from ..interface import NODES, RECORD_TOPICS, RECORDED_EVERY, TOPICS, node_name
 from ..live import LiveView
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import FINISH_TIMEOUT, WatchedNode, run_main
@@ -26,9 +26,10 @@ from .placement import launcher_pid
 
 __all__ = ["TAKE_BATCH", "MetricsLoggerNode", "main"]
 
-#: messages the logger takes before it writes them (about 30 steps of the drive, well inside the
-#: plant's RECORDING_WINDOW); a watchdog turn (0.1 s at most) writes what is waiting
-TAKE_BATCH = 96
+#: messages the logger takes before it writes them (about 128 steps of the drive, well inside the
+#: plant's RECORDING_WINDOW: the recorder's work then runs on arrays); a watchdog turn (0.1 s at
+#: most) writes what is waiting
+TAKE_BATCH = 384
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,6 @@ class MetricsLoggerNode(WatchedNode):
             raise
         self.pubs = {key: self.publisher(key) for key in ("diagnostics", "metrics")}
         self.pub_recorded = self.publisher("recorded")
-        self._last = {"state": -1, "reference": -1, "command": -1}  #: last k written, by record
         self._said = -1  #: the last step /drive/recorded announced
         #: stopping: /drive/recorded is no longer announced, so the plant holds within
         #: RECORDING_WINDOW steps and everything it published reaches this node (back-pressure)
@@ -106,7 +106,7 @@ class MetricsLoggerNode(WatchedNode):
         ticks = self.n // tool_every(run.ts) + 1
         #: messages taken, by topic; written (and counted in the bag) in batches
         self._counts = {"state": 0, "reference": 0, "command": 0, "clock": 0, "joint_states": 0}
-        self._taken: list[tuple[Callable[[str, bytes], None], str, bytes]] = []
+        self._taken: list[tuple[str, bytes]] = []  #: (topic key, data)
         self._need = {
             "state": self.n + 1,
             "reference": self.n + 1,
@@ -170,19 +170,19 @@ class MetricsLoggerNode(WatchedNode):
         )
 
     def on_record(self, rec: str, data: bytes) -> None:
-        # start-up lasts until command 0 is applied: until state 1 comes (see progressed)
-        self.progressed(
-            started=self._started or (rec == "state" and CODECS["state"].decode(data)[0] > 0)
-        )
-        self._take(self._record, rec, data)
+        if self._started:
+            self._last_progress = time.monotonic()  # progressed(), inline: 60,000 calls a second
+        else:  # start-up lasts until command 0 is applied: until state 1 comes (see progressed)
+            self.progressed(started=rec == "state" and CODECS["state"].decode(data)[0] > 0)
+        self._take(RECORD_TOPICS[rec], data)
 
-    def _take(self, write: Callable[[str, bytes], None], key: str, data: bytes) -> None:
+    def _take(self, key: str, data: bytes) -> None:
         """A message to record: taken now, written with the ones before it once
         :data:`TAKE_BATCH` have come (the recorder's work then runs in a tight loop), or at the
         next watchdog turn, or when the last one has come."""
         self._last_message = time.monotonic()
         self._counts[key] += 1
-        self._taken.append((write, key, data))
+        self._taken.append((key, data))
         if len(self._taken) >= TAKE_BATCH or self._counts == self._need:
             self._write_taken()
 
@@ -191,22 +191,18 @@ class MetricsLoggerNode(WatchedNode):
         recording goes; close the bag when every message has come."""
         taken, self._taken = self._taken, []
         try:
-            for write, key, data in taken:
-                write(key, data)
+            self.rec.take(taken)
             self.rec.flush()
         except BagError as e:
             self._cannot_write(e)
             return
-        through = min(self._last.values())
+        through = self.last_step
         if not self._draining and (through >= self._said + RECORDED_EVERY or through >= self.n - 1):
             self._said = through
             # the plant runs ahead of this by at most RECORDING_WINDOW steps (back-pressure)
             progress = (float(through), through * self._ts, float(self.writer.message_count))
             self.pub_recorded.publish(CODECS["recorded"].encode(progress))
         self._maybe_done()
-
-    def _record(self, rec: str, data: bytes) -> None:
-        self._last[rec] = int(self.rec.record_raw(rec, data)[0])
 
     def check(self) -> None:
         if self._taken:
@@ -233,7 +229,7 @@ class MetricsLoggerNode(WatchedNode):
 
     @property
     def last_step(self) -> int:
-        return min(self._last.values())
+        return min(self.rec.last_k.values())
 
     def _maybe_done(self) -> None:
         if self._counts == self._need and not self._taken:
@@ -241,7 +237,7 @@ class MetricsLoggerNode(WatchedNode):
             self.finished = True
 
     def on_tool(self, key: str, data: bytes) -> None:
-        self._take(self.rec.record_tool, key, data)
+        self._take(key, data)
 
     def on_parameter_event(self, data: bytes) -> None:
         """Parameter changes the drive's nodes accept while the drive runs (from its first state
@@ -256,7 +252,7 @@ class MetricsLoggerNode(WatchedNode):
             return
         if event.node in self._drive_nodes and event.changed:
             # in its place among the messages taken (its log time is the last step's before it)
-            self._taken.append((lambda _key, d: self.rec.record_event(d), "", data))
+            self._taken.append(("parameter_events", data))
 
     def _cannot_write(self, e: BagError) -> None:
         if not self.failure:
