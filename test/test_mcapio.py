@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType, IndexType, Writer
 
 from mcapcheck import rewrite_bag
 from predictive_drive.mcapio import ChunkWriter, read_file
@@ -161,10 +161,20 @@ def lib_messages(path) -> list[tuple]:
         ]
 
 
-def test_the_reader_reads_what_the_mcap_library_reads(tmp_path):
+@pytest.mark.parametrize(
+    "layout",
+    [
+        {},  # chunks with their message indexes: the message heads gathered with numpy
+        {"index_types": IndexType.NONE},  # chunks without: record by record
+        {"use_chunking": False},  # no chunks
+    ],
+    ids=["indexed", "no-index", "unchunked"],
+)
+def test_the_reader_reads_what_the_mcap_library_reads(tmp_path, layout):
     path = tmp_path / "f.mcap"
     with open(path, "wb") as f:
-        play(Writer(f, chunk_size=32 * 1024, compression=CompressionType.ZSTD), calls(3, 4000))
+        w = Writer(f, chunk_size=32 * 1024, compression=CompressionType.ZSTD, **layout)
+        play(w, calls(3, 4000))
     c = read_file(path)
     assert c.complete and c.messages == 4000
     got = [(ch.topic, lt, pt, s, d) for ch, lt, pt, s, d in c.in_file_order()]

@@ -13,9 +13,10 @@ than simulating it. Here the hot paths are our own and everything rare is the li
   level, every index, statistics, summary offsets, CRCs on; ``test_mcapio.py`` holds it to
   that, blocks included).
 - :func:`read_file` walks a file's top-level records, decompresses each chunk whole and notes
-  where each message lies, so a caller can decode a channel of fixed-size messages in one numpy
-  gather (:meth:`Messages.payloads`). A file cut short is read up to its last whole chunk, as the
-  library's stream reader reads it.
+  where each message lies — from the message index that follows the chunk, gathering the
+  message heads with numpy (record by record where there is no index) — so a caller can decode
+  a channel of fixed-size messages in one numpy gather (:meth:`Messages.payloads`). A file cut
+  short is read up to its last whole chunk, as the library's stream reader reads it.
 """
 
 from __future__ import annotations
@@ -538,11 +539,14 @@ class McapContents:
     metadata records by name, and whether the file ended as a closed file does (data end,
     summary, footer, magic)."""
 
-    data: bytearray
+    data: bytes
     channels: dict[int, Messages]
     metadata: dict[str, dict[str, str]]
     complete: bool
     messages: int = 0
+    #: while reading: the chunks' bytes (joined into :attr:`data` at the end), and their size
+    parts: list[bytes] = field(default_factory=list)
+    size: int = 0
 
     def payload(self, m: Messages, i: int) -> bytes:
         s = m.starts[i]
@@ -568,7 +572,7 @@ def read_file(path: Any) -> McapContents:
         raw = f.read()
     if raw[: len(MAGIC)] != MAGIC:
         raise ValueError(f"{path}: not an MCAP file")
-    out = McapContents(bytearray(), {}, {}, False)
+    out = McapContents(b"", {}, {}, False)
     unzstd = zstandard.ZstdDecompressor()
     pos, end = len(MAGIC), len(raw)
     while pos + 9 <= end:
@@ -578,7 +582,7 @@ def read_file(path: Any) -> McapContents:
             break  # cut short
         if op == Opcode.CHUNK:
             try:
-                _chunk(out, raw, body, unzstd)
+                _chunk(out, raw, body, unzstd, _message_index(raw, body + length))
             except (zstandard.ZstdError, ValueError, struct.error):
                 break  # a chunk cut or damaged: what came before stands
         elif op == Opcode.METADATA:
@@ -587,11 +591,15 @@ def read_file(path: Any) -> McapContents:
         elif op == Opcode.CHANNEL:
             _add_channel(out, Channel.read(ReadDataStream(_view(raw, body, length))))
         elif op == Opcode.MESSAGE:  # an unchunked file
-            _messages(out, memoryview(raw)[body - 9 : body + length], 0)
+            record = raw[body - 9 : body + length]
+            _messages(out, record, out.size)
+            out.parts.append(record)
+            out.size += len(record)
         elif op == Opcode.FOOTER:
             out.complete = raw[body + length : body + length + len(MAGIC)] == MAGIC
             break
         pos = body + length
+    out.data, out.parts = b"".join(out.parts), []
     return out
 
 
@@ -606,7 +614,79 @@ def _add_channel(out: McapContents, channel: Channel) -> None:
         out.channels[channel.id] = Messages(channel)
 
 
-def _chunk(out: McapContents, raw: bytes, body: int, unzstd: Any) -> None:
+def _message_index(raw: bytes, pos: int) -> np.ndarray | None:
+    """Where a chunk's messages begin in it, from the message index records that follow the
+    chunk (sorted); None when there are none, or one is cut short."""
+    found = []
+    end = len(raw)
+    while pos + 9 <= end:
+        op, length = _RECORD.unpack_from(raw, pos)
+        if op != Opcode.MESSAGE_INDEX:
+            break
+        if pos + 9 + length > end or length < 6:
+            return None
+        (size,) = struct.unpack_from("<I", raw, pos + 11)
+        if size % 16 or 6 + size > length:
+            return None
+        pairs = np.frombuffer(raw, dtype="<u8", count=size // 8, offset=pos + 15)
+        found.append(pairs[1::2])
+        pos += 9 + length
+    if not found:
+        return None
+    return np.sort(np.concatenate(found)).astype(np.int64)
+
+
+#: a message record's head as numpy reads it (see _MESSAGE)
+_HEAD = np.dtype(
+    [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("log", "<u8"), ("pub", "<u8")]
+)
+
+
+def _indexed_messages(out: McapContents, data: bytes, base: int, at: np.ndarray) -> bool:
+    """The records of a chunk's bytes whose messages begin at ``at`` (its message index), the
+    message heads gathered with numpy and the records between them (channels) read one by one.
+    False, with nothing added, when the index does not cover every message of the chunk."""
+    size = len(data)
+    if not len(at) or at[0] < 0 or at[-1] + _MESSAGE_HEAD > size:
+        return False
+    buf = np.frombuffer(data, dtype=np.uint8)
+    heads = buf[at[:, None] + np.arange(_MESSAGE_HEAD)].view(_HEAD).ravel()
+    ends = at + 9 + heads["len"].astype(np.int64)
+    if (heads["op"] != Opcode.MESSAGE).any() or (ends[:-1] > at[1:]).any() or ends[-1] > size:
+        return False
+    # what lies between the messages: other records (channels, schemas), never a message
+    channels = []
+    for start, stop in zip([0, *ends.tolist()], [*at.tolist(), size]):
+        pos = start
+        while pos + 9 <= stop:
+            op, length = _RECORD.unpack_from(data, pos)
+            if op == Opcode.MESSAGE:
+                return False  # a message the index does not have
+            if op == Opcode.CHANNEL:
+                channels.append(Channel.read(ReadDataStream(_view(bytes(data), pos + 9, length))))
+            pos += 9 + length
+    for channel in channels:
+        _add_channel(out, channel)
+    ids = heads["ch"]
+    if not set(np.unique(ids).tolist()) <= set(out.channels):
+        raise ValueError("a message of a channel the file never declared")
+    order = np.arange(out.messages, out.messages + len(at))
+    for ch in np.unique(ids).tolist():
+        mine = ids == ch
+        m = out.channels[ch]
+        m.starts += (at[mine] + base + _MESSAGE_HEAD).tolist()
+        m.lengths += (heads["len"][mine].astype(np.int64) - 22).tolist()
+        m.log_times += heads["log"][mine].tolist()
+        m.publish_times += heads["pub"][mine].tolist()
+        m.sequences += heads["seq"][mine].tolist()
+        m.order += order[mine].tolist()
+    out.messages += len(at)
+    return True
+
+
+def _chunk(
+    out: McapContents, raw: bytes, body: int, unzstd: Any, index: np.ndarray | None = None
+) -> None:
     _start, _end, size, crc = _CHUNK_HEAD.unpack_from(raw, body)
     pos = body + _CHUNK_HEAD.size
     (n,) = struct.unpack_from("<I", raw, pos)
@@ -623,8 +703,10 @@ def _chunk(out: McapContents, raw: bytes, body: int, unzstd: Any) -> None:
         raise ValueError(f"compression {compression!r} is not read here")
     if len(data) != size or (crc and zlib.crc32(data) != crc):
         raise ValueError("chunk damaged")
-    _messages(out, data, len(out.data))
-    out.data += data
+    if index is None or not _indexed_messages(out, data, out.size, index):
+        _messages(out, data, out.size)
+    out.parts.append(data)
+    out.size += len(data)
 
 
 def _messages(out: McapContents, data: Any, base: int) -> None:
