@@ -123,12 +123,21 @@ def example_dtc() -> str | None:
 
 @dataclass(frozen=True)
 class GraphRate:
-    """One graph run's throughput (steps/s, None when too few samples gave no slope) and how
-    long it took to start (wall s until its first /clock)."""
+    """One graph run's throughput (steps/s, None when too few samples gave no slope), how long
+    it took to start (wall s until its first /clock), and the core loop measured right before
+    and right after it (the mean of the two; NaN where the run was not made)."""
 
     run: GraphRun
     steps_per_s: float | None
     startup_s: float
+    core_near_steps_per_s: float = math.nan
+
+
+def _core_rate(sc: Any, steps: int) -> float:
+    """Steps/s of the core loop in one run of ``steps``."""
+    t0 = time.perf_counter()
+    run_inprocess(sc, steps=steps)
+    return steps / (time.perf_counter() - t0)
 
 
 def _median(values: list[float]) -> float:
@@ -147,6 +156,10 @@ class Bench:
     inprocess_recorded_steps_per_s: float
     #: reading that bag back and evaluating it (what report does), median of the repeats
     report_steps_per_s: float
+    #: each recorded run / the core run just before it, and each report / that core run: the
+    #: medians (the machine drifts within a call; a pair drifts less)
+    inprocess_recorded_of_core: float
+    report_x_core: float
     compute_us_per_step: dict[str, float]  #: median control-law time per strategy
     real_time_steps_per_s: float
     graph: list[GraphRate]
@@ -160,10 +173,13 @@ class Bench:
             "real_time_steps_per_s": self.real_time_steps_per_s,
             "inprocess_recorded_steps_per_s": self.inprocess_recorded_steps_per_s,
             "report_steps_per_s": self.report_steps_per_s,
+            "inprocess_recorded_of_core": self.inprocess_recorded_of_core,
+            "report_x_core": self.report_x_core,
         }
         for g in self.graph:
             out[g.run.key] = g.steps_per_s
             out[g.run.key.replace("steps_per_s", "startup_s")] = g.startup_s
+            out[g.run.key.replace("steps_per_s", "core_near_steps_per_s")] = g.core_near_steps_per_s
         return out
 
 
@@ -212,6 +228,7 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
                     graph.append(GraphRate(g, None, math.nan))  # not here: no figure
                     continue
                 external = {"torque_controller": command}
+            before = _core_rate(sc, steps)
             r = graph_rate(
                 g.engine,
                 affinity=g.affinity,
@@ -220,13 +237,16 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
                 duration=0.3 if quick else g.example_dtc or 2.0,
                 external=external,
             )
-            graph.append(GraphRate(g, r["steps_per_s"], r["startup_s"]))
+            near = (before + _core_rate(sc, steps)) / 2
+            graph.append(GraphRate(g, r["steps_per_s"], r["startup_s"], near))
     return Bench(
         steps=steps,
         core_steps_per_s=_median(rates),
         core_steps_per_s_runs=rates,
         inprocess_recorded_steps_per_s=_median(recorded),
         report_steps_per_s=_median(report_rates),
+        inprocess_recorded_of_core=_median([x / c for x, c in zip(recorded, rates)]),
+        report_x_core=_median([x / c for x, c in zip(report_rates, rates)]),
         compute_us_per_step=compute,
         real_time_steps_per_s=1.0 / sc.ts,
         graph=graph,

@@ -40,11 +40,13 @@ def main(a: argparse.Namespace) -> int:
     core = d.core_steps_per_s
     print(
         f"in-process with MCAP recording: {d.inprocess_recorded_steps_per_s:,.0f} steps/s "
-        f"({d.inprocess_recorded_steps_per_s / core:.2f} of the core loop)"
+        f"({d.inprocess_recorded_steps_per_s / core:.2f} of the core loop; each run against the "
+        f"core run before it: {d.inprocess_recorded_of_core:.2f}, the median)"
     )
     print(
         f"reading the recording back and evaluating it (report): {d.report_steps_per_s:,.0f} "
-        f"steps/s ({d.report_steps_per_s / core:.2f} x the core loop)"
+        f"steps/s ({d.report_steps_per_s / core:.2f} x the core loop; each against the core run "
+        f"before it: {d.report_x_core:.2f} x, the median)"
     )
     for g in d.graph:
         if g.steps_per_s is None and g.run.example_dtc and math.isnan(g.startup_s):
@@ -55,7 +57,9 @@ def main(a: argparse.Namespace) -> int:
             print(
                 f"{g.run.key} ({g.run.what}): {g.steps_per_s:,.0f} steps/s "
                 f"({g.steps_per_s / rt:.2f}x real time, {g.steps_per_s / core:.2f} of the core "
-                f"loop; slope over 20-90 % of one run, start-up {g.startup_s:.1f} s excluded)"
+                f"loop's median, {g.steps_per_s / g.core_near_steps_per_s:.2f} of the core loop "
+                f"run right before and after it; slope over 20-90 % of one run, start-up "
+                f"{g.startup_s:.1f} s excluded)"
             )
     for name, us in d.compute_us_per_step.items():
         print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")
