@@ -19,6 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
+import numpy as np
+
 from .core.commands import FORMS, CommandError, command_from
 from .errors import BagError
 from .interface import RECORD_TOPICS, TOPICS
@@ -199,6 +201,7 @@ class MultiArrayCodec:
         self.prefix = w.bytes()
         self._fmt = struct.Struct(f"<{len(fields)}d")
         self.size = len(self.prefix) + self._fmt.size
+        self._prefix_u8 = np.frombuffer(self.prefix, dtype=np.uint8)
         #: the last message decoded and its values: composed, every local subscriber of a topic
         #: is handed the same bytes object, and decodes it once
         self._last: tuple[bytes, tuple[float, ...]] = (b"", ())
@@ -216,6 +219,27 @@ class MultiArrayCodec:
             self._last = (data, values)
             return values
         return None
+
+    def exact_rows(self, raw: np.ndarray) -> np.ndarray | None:
+        """Values of messages given as the rows of an (n, :attr:`size`) uint8 array, in one
+        numpy view, when every one has exactly this layout (else None)."""
+        head = len(self.prefix)
+        if raw.shape[1:] != (self.size,) or not (raw[:, :head] == self._prefix_u8).all():
+            return None
+        return raw[:, head:].copy().view("<f8")
+
+    def decode_rows(self, payloads: list[bytes]) -> np.ndarray:
+        """Values of messages as (n, fields) rows: in one numpy call when every one has
+        exactly this layout, else message by message (:meth:`decode`)."""
+        if not payloads:
+            return np.empty((0, len(self.fields)))
+        joined = b"".join(payloads)
+        if len(joined) == self.size * len(payloads):
+            raw = np.frombuffer(joined, dtype=np.uint8).reshape(len(payloads), self.size)
+            rows = self.exact_rows(raw)
+            if rows is not None:
+                return rows
+        return np.array([self.decode(data) for data in payloads], dtype=np.float64)
 
     def decode(self, data: bytes) -> tuple[float, ...]:
         """Values of a message in this layout's field order. A message of exactly this layout

@@ -656,7 +656,9 @@ def _indexed_messages(out: McapContents, data: bytes, base: int, at: np.ndarray)
         return False
     # what lies between the messages: other records (channels, schemas), never a message
     channels = []
-    for start, stop in zip([0, *ends.tolist()], [*at.tolist(), size]):
+    starts, stops = np.append(0, ends), np.append(at, size)
+    gaps = np.flatnonzero(stops > starts)
+    for start, stop in zip(starts[gaps].tolist(), stops[gaps].tolist()):
         pos = start
         while pos + 9 <= stop:
             op, length = _RECORD.unpack_from(data, pos)

@@ -152,10 +152,8 @@ def _values(
     ``decode`` (default: by field name)."""
     width = len(codec.fields)
     if all(n == codec.size for n in m.lengths):
-        raw = m.payloads(contents.data, codec.size)
-        prefix = np.frombuffer(codec.prefix, dtype=np.uint8)
-        if (raw[:, : len(prefix)] == prefix).all():
-            values = raw[:, len(prefix) :].copy().view("<f8")
+        values = codec.exact_rows(m.payloads(contents.data, codec.size))
+        if values is not None:
             return values.reshape(len(m), width)
     one = decode or codec.decode
     rows = [one(contents.payload(m, i)) for i in range(len(m))]

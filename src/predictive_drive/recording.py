@@ -189,22 +189,6 @@ _UNPAIRED_HORIZON = 10 * RECORDING_WINDOW
 _RECORD_OF = {key: record for record, key in RECORD_TOPICS.items()}
 
 
-def _decoded_rows(key: str, payloads: list[bytes]) -> np.ndarray:
-    """The values of messages of topic ``key`` as rows: in one numpy call when every one has
-    exactly this version's layout, else message by message (a labelled layout of another
-    version is read by field name)."""
-    codec = CODECS[key]
-    if not payloads:
-        return np.empty((0, len(codec.fields)))
-    joined = b"".join(payloads)
-    if len(joined) == codec.size * len(payloads):
-        raw = np.frombuffer(joined, dtype=np.uint8).reshape(len(payloads), codec.size)
-        head = len(codec.prefix)
-        if (raw[:, :head] == np.frombuffer(codec.prefix, dtype=np.uint8)).all():
-            return raw[:, head:].copy().view("<f8")
-    return np.array([codec.decode(data) for data in payloads], dtype=np.float64)
-
-
 class RunRecorder:
     """Writes a run into a :class:`BagWriter` in log-time order and keeps the running metrics.
 
@@ -451,7 +435,7 @@ class RunRecorder:
             elif key in TOOL_TOPICS:
                 ns_at[i] = tool_stamp_ns(data)
         for record, key in RECORD_TOPICS.items():
-            rows = _decoded_rows(key, payloads[record])
+            rows = CODECS[key].decode_rows(payloads[record])
             if len(rows):
                 ns = np.rint(rows[:, T] * 1e9).astype(np.int64).tolist()  # stamp_ns
                 for i, t, n in zip(where[record], rows[:, T].tolist(), ns):

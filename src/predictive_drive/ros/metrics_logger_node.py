@@ -170,10 +170,10 @@ class MetricsLoggerNode(WatchedNode):
         )
 
     def on_record(self, rec: str, data: bytes) -> None:
-        if self._started:
-            self._last_progress = time.monotonic()  # progressed(), inline: 60,000 calls a second
-        else:  # start-up lasts until command 0 is applied: until state 1 comes (see progressed)
-            self.progressed(started=rec == "state" and CODECS["state"].decode(data)[0] > 0)
+        # start-up lasts until command 0 is applied: until state 1 comes (see progressed)
+        self.progressed(
+            started=self._started or (rec == "state" and CODECS["state"].decode(data)[0] > 0)
+        )
         self._take(RECORD_TOPICS[rec], data)
 
     def _take(self, key: str, data: bytes) -> None:
