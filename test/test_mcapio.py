@@ -269,7 +269,12 @@ def test_a_node_recorder_takes_a_batch_at_once_as_it_takes_it_message_by_message
     period, across batches of odd sizes, with a parameter change, a command of another
     version's layout and a command that never came in between."""
     from predictive_drive.bag import BagWriter
-    from predictive_drive.codec import CODECS, MultiArrayCodec, encode_parameter_event
+    from predictive_drive.codec import (
+        CODECS,
+        MultiArrayCodec,
+        encode_parameter_event,
+        tool_stamp_ns,
+    )
     from predictive_drive.config import load_scenario
     from predictive_drive.core.control import strategy_names
     from predictive_drive.core.runner import run_inprocess
@@ -326,6 +331,21 @@ def test_a_node_recorder_takes_a_batch_at_once_as_it_takes_it_message_by_message
     each = record("each", live=lambda key, t, data: None)  # message by message
     once = record("once", live=None)
     assert len(each) > 15_000 and once == each
+    # the steps' messages in (log time, arrival) order, from the codec, not the recorder
+    stamp = {key: TOPICS[key].name for key in ("state", "reference", "command", "clock")}
+    stamp["joint_states"] = TOPICS["joint_states"].name
+    expected = sorted(
+        (
+            (round(CODECS[key].decode(data)[1] * 1e9) if key in CODECS else tool_stamp_ns(data)),
+            i,
+            stamp[key],
+            data,
+        )
+        for i, (key, data) in enumerate(messages)
+        if key in stamp
+    )
+    steps = [(topic, lt, data) for topic, lt, _, _, data in once if topic in stamp.values()]
+    assert steps == [(topic, lt, data) for lt, _, topic, data in expected]
     assert sum(m[0] == "/diagnostics" for m in once) >= 3
     assert sum(m[0] == "/parameter_events" for m in once) == 1
 

@@ -13,11 +13,9 @@ several times faster); the library reads it back where speed does not matter (re
 
 from __future__ import annotations
 
-import bisect
 import fcntl
 import functools
 import json
-import math
 import os
 import shutil
 import time
@@ -25,8 +23,9 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
+import numpy as np
 import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -44,6 +43,7 @@ __all__ = [
     "LOGS_DIR",
     "META_NAME",
     "BagWriter",
+    "Held",
     "RecordedTopic",
     "RepairResult",
     "check_new_bag",
@@ -62,9 +62,9 @@ __all__ = [
 #: written (and flushed to the OS) by the writer's own thread while the next one fills: the mcap
 #: C++ writer's defaults, which rosbag2's MCAP plugin records with (768 KiB, its "default" zstd
 #: level, 1). A run killed outright loses what had not reached the file: the chunk it was
-#: filling, the one in flight and, in-process, the steps not yet handed to the recorder
-#: (core.runner.SINK_BATCH); ~3,000 steps of a 20 kHz run at most (0.15 s simulated; ~620
-#: bytes a step)
+#: filling, the one in flight and the steps not yet handed to the recorder (in-process
+#: core.runner.SINK_BATCH, in a node the logger's TAKE_BATCH); ~3,000 steps of a 20 kHz run at
+#: most (0.15 s simulated; ~620 bytes a step)
 CHUNK_SIZE = 768 * 1024
 ZSTD_LEVEL = 1
 META_NAME = "predictive_drive"
@@ -210,6 +210,18 @@ def _qos_yaml(topic_key: str) -> str:
     return yaml.safe_dump([TOPICS[topic_key].qos.rosbag2()], sort_keys=False).strip()
 
 
+class Held(NamedTuple):
+    """Messages held for log-time order (:meth:`BagWriter.hold_block`, :meth:`BagWriter.ready`):
+    their log times (int64 ns), MCAP channel ids and serialized data, one entry each."""
+
+    times: np.ndarray
+    channels: np.ndarray
+    data: list[bytes]
+
+
+_NOTHING_HELD = Held(np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), [])
+
+
 class BagWriter:
     """Write one run. Use as a context manager: the bag is closed (index, footer, metadata.yaml)
     however the block ends, so Ctrl-C or an error leaves a complete, readable bag."""
@@ -253,8 +265,10 @@ class BagWriter:
         metadata.yaml."""
         self._writer.start(profile="ros2", library=f"predictive_drive {__version__}")
         self._channels: dict[str, int] = {}
-        self._held: list[tuple[int, int, str, bytes]] = []  #: (log time, arrival, key, data)
-        self._arrivals = 0
+        #: messages held for log-time order (see hold), in the order they came: blocks of
+        #: (log times, channels, data), then the ones held one at a time since the last block
+        self._held: list[Held] = []
+        self._loose: tuple[list[int], list[int], list[bytes]] = ([], [], [])
         self._closed = False
         self._failed = ""
         #: rosbag2's custom_data: written into metadata.yaml and the rosbag2 record on close
@@ -284,8 +298,12 @@ class BagWriter:
         publish time. BagError when the file cannot take it (a full disk): the bag is then
         incomplete. Messages written in log-time order make a file readers need not sort; a
         writer that receives them out of order uses :meth:`hold` and :meth:`release`."""
+        self.write_on(self._channels[topic_key], t_ns, data)
+
+    def write_on(self, channel: int, t_ns: int, data: bytes) -> None:
+        """:meth:`write` by MCAP channel id (see :meth:`channel`)."""
         try:
-            self._writer.add(self._channels[topic_key], t_ns, data)
+            self._writer.add(channel, t_ns, data)
         except OSError as e:
             raise self.write_failed(e) from None
 
@@ -313,27 +331,55 @@ class BagWriter:
     def hold(self, topic_key: str, t_ns: int, data: bytes) -> None:
         """One message to be written in log-time order once :meth:`release` passes its time
         (messages of equal time keep their arrival order); :meth:`close` writes what is held."""
-        self._arrivals += 1
-        self._held.append((t_ns, self._arrivals, topic_key, data))
+        times, channels, held = self._loose
+        times.append(t_ns)
+        channels.append(self._channels[topic_key])
+        held.append(data)
+
+    def hold_block(self, block: Held) -> None:
+        """Messages to hold (see :meth:`hold`), in the order they came: their log times,
+        channel ids and data."""
+        self._gather()
+        if len(block.times):
+            self._held.append(block)
+
+    def _gather(self) -> None:
+        """The messages held one at a time since the last block, as a block."""
+        times, channels, data = self._loose
+        if times:
+            self._held.append(
+                Held(np.array(times, dtype=np.int64), np.array(channels, dtype=np.int64), data)
+            )
+            self._loose = ([], [], [])
 
     def release(self, through_ns: int) -> None:
         """Write the held messages logged at or before ``through_ns``, in (log time, arrival)
         order: the caller knows that no message of an earlier time is still to come."""
-        write = self.write
-        for t_ns, _, key, data in self.ready(through_ns):
-            write(key, t_ns, data)
+        ready = self.ready(through_ns)
+        write = self.write_on
+        for t_ns, channel, data in zip(ready.times.tolist(), ready.channels.tolist(), ready.data):
+            write(channel, t_ns, data)
 
-    def ready(self, through_ns: int) -> list[tuple[int, int, str, bytes]]:
+    def ready(self, through_ns: int) -> Held:
         """Take the held messages logged at or before ``through_ns`` out, in (log time,
-        arrival) order, as (time, arrival, topic key, data): the caller writes them, in that
-        order (what :meth:`release` does)."""
-        held = self._held
-        if not held:
-            return []
-        held.sort()  # (time, arrival) is unique: the rest of the tuple is never compared
-        n = bisect.bisect_right(held, (through_ns, math.inf))
-        ready, self._held = held[:n], held[n:]
-        return ready
+        arrival) order: the caller writes them, in that order (what :meth:`release` does)."""
+        self._gather()
+        if not self._held:
+            return _NOTHING_HELD
+        if len(self._held) == 1:
+            times, channels, data = self._held[0]
+        else:
+            times = np.concatenate([b.times for b in self._held])
+            channels = np.concatenate([b.channels for b in self._held])
+            data = [d for b in self._held for d in b.data]
+        if len(times) > 1 and not bool((times[1:] >= times[:-1]).all()):
+            order = np.argsort(times, kind="stable")  # equal times keep their arrival order
+            times, channels = times[order], channels[order]
+            data = [data[i] for i in order.tolist()]
+        n = int(np.searchsorted(times, through_ns, side="right"))
+        rest = Held(times[n:], channels[n:], data[n:])
+        self._held = [rest] if len(rest.times) else []
+        return Held(times[:n], channels[:n], data[:n])
 
     @property
     def last_ns(self) -> int:
@@ -343,7 +389,7 @@ class BagWriter:
     @property
     def held(self) -> int:
         """Messages held for :meth:`release`."""
-        return len(self._held)
+        return sum(len(b.times) for b in self._held) + len(self._loose[0])
 
     def close(self) -> None:
         """Index, footer and metadata.yaml; BagError if they cannot be written (the file then

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from .bag import BagWriter
+from .bag import BagWriter, Held
 from .codec import (
     CODECS,
     ERROR,
@@ -262,6 +262,12 @@ class RunRecorder:
                 [(key, CODECS[key].prefix, 8 * len(CODECS[key].fields)) for key in keys]
             )
         self._tool_channels = {key: writer.channel(key) for key in TOOL_TOPICS}
+        self._tool_channel_ids = np.array(list(self._tool_channels.values()))
+        self._arrival_channels = [writer.channel(keys[p]) for p in _ARRIVAL]
+        #: node path: the channel of each topic a node takes
+        self._channel_of = {key: writer.channel(key) for key in (*_STREAMS, "parameter_events")}
+        self._streams = [(key, self._channel_of[key]) for key in _STREAMS]
+        self._record_channel_ids = np.array([writer.channel(key) for key in keys])
         self._prefix_state = CODECS[RECORD_TOPICS["state"]].prefix
         self._prefix_reference = CODECS[RECORD_TOPICS["reference"]].prefix
         self._prefix_command = CODECS[RECORD_TOPICS["command"]].prefix
@@ -420,52 +426,72 @@ class RunRecorder:
     def _take_batch(self, taken: list[tuple[str, bytes]]) -> None:
         """:meth:`take` of a batch: each topic's records decoded at once (one numpy call when
         all have this version's layout), paired with the records of their step by k, the
-        completed steps' running metrics summed at once; then each message held in order, a
+        completed steps' running metrics summed at once; the messages held as blocks, a
         parameter change at the last step's time before it and a period's diagnostics right
         after the message that completed the period — where :meth:`_take_each` holds them."""
-        where: dict[str, list[int]] = {r: [] for r in RECORD_TOPICS}
-        payloads: dict[str, list[bytes]] = {r: [] for r in RECORD_TOPICS}
-        ns_at: list[int] = [0] * len(taken)
-        t_at: list[float] = [-math.inf] * len(taken)  #: each record's time
-        for i, (key, data) in enumerate(taken):
-            record = _RECORD_OF.get(key)
-            if record is not None:
-                where[record].append(i)
-                payloads[record].append(data)
-            elif key in TOOL_TOPICS:
-                ns_at[i] = tool_stamp_ns(data)
+        n = len(taken)
+        if n == 0:
+            return
+        keys, datas = zip(*taken)
+        channels = np.fromiter(map(self._channel_of.__getitem__, keys), dtype=np.int64, count=n)
+        ns = np.zeros(n, dtype=np.int64)  #: each message's log time (a parameter change: later)
+        t_at = np.full(n, -math.inf)  #: each record's time
         for record, key in RECORD_TOPICS.items():
-            rows = CODECS[key].decode_rows(payloads[record])
-            if len(rows):
-                ns = np.rint(rows[:, T] * 1e9).astype(np.int64).tolist()  # stamp_ns
-                for i, t, n in zip(where[record], rows[:, T].tolist(), ns):
-                    t_at[i], ns_at[i] = t, n
-                self.last_k[record] = int(rows[-1, K])
-                if record == "command":
-                    self._spans_of(rows)
-                positions = np.asarray(where[record], dtype=np.int64)
-                self._unpaired[record] = (
-                    np.concatenate([self._unpaired[record][0], rows]),
-                    np.concatenate([np.full(len(self._unpaired[record][1]), -1), positions]),
-                )
-        snaps = self._pair_steps()
-        hold = self.writer.hold
-        seen = self._seen
-        last_t = self.last_t
-        due = snaps.pop(0) if snaps else (len(taken), {})
-        for i, (key, data) in enumerate(taken):
-            if key == "parameter_events":  # record_event
-                hold(key, max(stamp_ns(last_t), self._floor()), data)
+            where = np.flatnonzero(channels == self._channel_of[key])
+            if not len(where):
                 continue
-            ns = ns_at[i]
-            hold(key, ns, data)
-            if t_at[i] > last_t:
-                last_t = t_at[i]
-            while i == due[0]:
-                self._diagnose(due[1])
-                due = snaps.pop(0) if snaps else (len(taken), {})
-            seen[key] = ns  # each topic comes in order: see _released
-        self.last_t = last_t
+            rows = CODECS[key].decode_rows([datas[i] for i in where.tolist()])
+            ns[where] = np.rint(rows[:, T] * 1e9)  # stamp_ns
+            t_at[where] = rows[:, T]
+            self.last_k[record] = int(rows[-1, K])
+            if record == "command":
+                self._spans_of(rows)
+            self._unpaired[record] = (
+                np.concatenate([self._unpaired[record][0], rows]),
+                np.concatenate([np.full(len(self._unpaired[record][1]), -1), where]),
+            )
+        # where the batch is cut: after a message that completed a diagnostics period (its
+        # snapshot), at a parameter change (None)
+        cuts: list[tuple[int, dict[str, float] | None]] = []
+        for i in np.flatnonzero(~np.isin(channels, self._record_channel_ids)).tolist():
+            if keys[i] == "parameter_events":
+                cuts.append((i, None))
+            else:  # a tool message
+                ns[i] = tool_stamp_ns(datas[i])
+        cuts += self._pair_steps()
+        cuts.sort(key=lambda cut: cut[0])  # stable: a position's snapshots in their order
+        held = seen = 0  #: what is held, and seen (see _released), of the batch so far
+        for i, snap in cuts:
+            if snap is None:  # record_event, at the last step's time before it
+                self._hold_part(held, i, ns, channels, datas)
+                self._see(seen, i, ns, channels)
+                last_t = max(self.last_t, float(t_at[:i].max(initial=-math.inf)))
+                self.writer.hold("parameter_events", max(stamp_ns(last_t), self._floor()), datas[i])
+                held = seen = i + 1
+            else:  # held and seen: through the message before it
+                self._hold_part(held, i + 1, ns, channels, datas)
+                self._see(seen, i, ns, channels)
+                self._diagnose(snap)
+                held, seen = i + 1, i
+        self._hold_part(held, n, ns, channels, datas)
+        self._see(seen, n, ns, channels)
+        self.last_t = max(self.last_t, float(t_at.max()))
+
+    def _hold_part(
+        self, start: int, end: int, ns: np.ndarray, channels: np.ndarray, datas: tuple[bytes, ...]
+    ) -> None:
+        """Messages [start, end) of a batch, held as a block."""
+        if end > start:
+            self.writer.hold_block(Held(ns[start:end], channels[start:end], list(datas[start:end])))
+
+    def _see(self, start: int, end: int, ns: np.ndarray, channels: np.ndarray) -> None:
+        """The last log time of each topic among messages [start, end) of a batch (see
+        _released)."""
+        part = channels[start:end]
+        for key, channel in self._streams:
+            hits = np.flatnonzero(part == channel)
+            if len(hits):
+                self._seen[key] = int(ns[start + hits[-1]])
 
     def _pair_steps(self) -> list[tuple[int, dict[str, float]]]:
         """The steps whose state, reference and command have all come (paired by k, in the
@@ -478,10 +504,20 @@ class RunRecorder:
         )
         if not (len(s) and len(r) and len(c)):
             return []
-        common = np.intersect1d(np.intersect1d(s[:, K], r[:, K]), c[:, K])
+        ks = [x[:, K] for x in (s, r, c)]
+        # each topic's steps in a row from the same step on (as the graph delivers them): the
+        # first ones of each are the steps complete
+        in_row = ks[0][0] == ks[1][0] == ks[2][0] and all(
+            len(k) == 1 or bool((np.diff(k) == 1).all()) for k in ks
+        )
+        if in_row:
+            common = ks[0][: min(len(k) for k in ks)]
+            picks = [np.arange(len(common))] * 3
+        else:
+            common = np.intersect1d(np.intersect1d(ks[0], ks[1]), ks[2])
+            picks = [np.searchsorted(k, common) for k in ks]
         snaps: list[tuple[int, dict[str, float]]] = []
         if len(common):
-            picks = [np.searchsorted(x[:, K], common) for x in (s, r, c)]
             paired = [x[p] for x, p in zip((s, r, c), picks)]
             at = np.maximum.reduce([a[p] for a, p in zip((s_at, r_at, c_at), picks)])
             i, m = 0, len(common)
@@ -492,7 +528,10 @@ class RunRecorder:
                     snaps.append((int(at[j - 1]), snap))
                 i = j
         for x, (rows, came) in list(self._unpaired.items()):
-            keep = ~np.isin(rows[:, K], common)
+            if in_row:
+                keep = rows[:, K] > common[-1]
+            else:
+                keep = ~np.isin(rows[:, K], common)
             if len(common):  # a record this far behind the steps paired will find no partner
                 keep &= rows[:, K] > common[-1] - _UNPAIRED_HORIZON
             self._unpaired[x] = (rows[keep], came[keep])
@@ -543,50 +582,56 @@ class RunRecorder:
         messages it takes; what comes later cannot be earlier): the steps whose reference,
         state, tool messages and command follow one another as one block, the rest one by one."""
         ready = self.writer.ready(self._released)
-        write = self.writer.write
-        sizes = [self._sizes[p] for p in _ARRIVAL]
-        tools = self._tool_channels
-        steps: list[tuple[Any, ...]] = []  #: (reference, state, command) items of the block
-        extras: list[tuple[int, list[tuple[int, int, bytes]]]] = []
-        i, n = 0, len(ready)
+        times, channels, data = ready
+        n = len(times)
+        if n == 0:
+            return
+        sizes = np.fromiter(map(len, data), dtype=np.int64, count=n)
+        ref, state, command = (
+            (channels == self._arrival_channels[p]) & (sizes == self._sizes[q])
+            for p, q in enumerate(_ARRIVAL)
+        )
+        tool = np.isin(channels, self._tool_channel_ids)
+        # the first message at or after each place that is not a tool message (n: none)
+        after = np.minimum.accumulate(np.where(tool, n, np.arange(n))[::-1])[::-1]
+        after = np.append(after, [n, n])
+        # a step: a reference, its state, tool messages, then its command
+        cmd = after[2:n]  # where each candidate's command would be
+        step = ref[: n - 2] & state[1 : n - 1] & (cmd < n)
+        step[step] &= command[cmd[step]]
+        starts = np.flatnonzero(step)
+        ends = cmd[starts]  #: each step's command
+        inside = np.zeros(n + 1, dtype=np.int64)
+        inside[starts] += 1
+        inside[ends + 1] -= 1
+        alone = np.flatnonzero(np.cumsum(inside[:n]) == 0)  #: written one by one
         try:
-            while i < n:
-                t, _, key, data = ready[i]
-                if key == "reference" and len(data) == sizes[0] and i + 2 < n:
-                    state = ready[i + 1]
-                    j = i + 2
-                    while j < n and ready[j][2] in tools:
-                        j += 1
-                    if (
-                        state[2] == "state"
-                        and len(state[3]) == sizes[1]
-                        and j < n
-                        and ready[j][2] == "command"
-                        and len(ready[j][3]) == sizes[2]
-                    ):
-                        if j > i + 2:
-                            between = [(tools[m[2]], m[0], m[3]) for m in ready[i + 2 : j]]
-                            extras.append((len(steps), between))
-                        steps.append((ready[i], state, ready[j]))
-                        i = j + 1
-                        continue
-                self._write_block(steps, extras)
-                steps, extras = [], []
-                write(key, t, data)
-                i += 1
-            self._write_block(steps, extras)
+            done = 0
+            for i, before in zip(alone.tolist(), np.searchsorted(starts, alone).tolist()):
+                self._write_block(ready, starts[done:before], ends[done:before])
+                done = before
+                self.writer.write_on(int(channels[i]), int(times[i]), data[i])
+            self._write_block(ready, starts[done:], ends[done:])
         except OSError as e:
             raise self.writer.write_failed(e) from None
 
-    def _write_block(
-        self, steps: list[tuple[Any, ...]], extras: list[tuple[int, list[tuple[int, int, bytes]]]]
-    ) -> None:
-        """Node path: (reference, state, command) items of ``ready`` as one block."""
-        if not steps:
+    def _write_block(self, ready: Held, starts: np.ndarray, ends: np.ndarray) -> None:
+        """Node path: steps of ``ready`` (its messages from each start to the command at its
+        end) as one block."""
+        if not len(starts):
             return
-        times = [np.array([step[p][0] for step in steps], dtype=np.int64) for p in range(3)]
-        payloads = [b"".join([step[p][3] for step in steps]) for p in range(3)]
-        self._group.add_steps(times, payloads, extras)  # type: ignore[union-attr]
+        times, channels, data = ready
+        parts = (starts, starts + 1, ends)  # reference, state, command: _ARRIVAL
+        extras = [
+            (j, [(int(channels[m]), int(times[m]), data[m]) for m in range(s + 2, e)])
+            for j, (s, e) in enumerate(zip(starts.tolist(), ends.tolist()))
+            if e > s + 2
+        ]
+        self._group.add_steps(  # type: ignore[union-attr]
+            [times[at] for at in parts],
+            [b"".join([data[i] for i in at.tolist()]) for at in parts],
+            extras,
+        )
 
     def _span(self, k: int, index: float) -> None:
         """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process

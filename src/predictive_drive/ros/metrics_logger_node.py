@@ -26,10 +26,10 @@ from .placement import launcher_pid
 
 __all__ = ["TAKE_BATCH", "MetricsLoggerNode", "main"]
 
-#: messages the logger takes before it writes them (about 128 steps of the drive, well inside the
-#: plant's RECORDING_WINDOW: the recorder's work then runs on arrays); a watchdog turn (0.1 s at
-#: most) writes what is waiting
-TAKE_BATCH = 384
+#: messages the logger takes before it writes them (about 500 steps of the drive, half the plant's
+#: RECORDING_WINDOW: the recorder's work runs on arrays, and a batch's numpy calls cost about as
+#: much as its messages at 384); a watchdog turn (0.1 s at most) writes what is waiting
+TAKE_BATCH = 1536
 
 
 @dataclass(frozen=True)
@@ -114,6 +114,9 @@ class MetricsLoggerNode(WatchedNode):
             "clock": ticks,
             "joint_states": ticks,
         }
+        self._left = sum(self._need.values())  #: messages still to come
+        #: at the last batch written: the messages still to come, and the records taken
+        self._noted = (self._left, 0)
         # tool topics first: the plant starts once it sees this node's /drive/state subscription
         self.subs = [
             self.subscription(key, functools.partial(self.on_tool, key))
@@ -170,26 +173,26 @@ class MetricsLoggerNode(WatchedNode):
         )
 
     def on_record(self, rec: str, data: bytes) -> None:
-        # start-up lasts until command 0 is applied: until state 1 comes (see progressed)
-        self.progressed(
-            started=self._started or (rec == "state" and CODECS["state"].decode(data)[0] > 0)
-        )
+        if not self._started:  # start-up lasts until command 0 is applied: until state 1 comes
+            self.progressed(started=rec == "state" and CODECS["state"].decode(data)[0] > 0)
         self._take(RECORD_TOPICS[rec], data)
 
     def _take(self, key: str, data: bytes) -> None:
         """A message to record: taken now, written with the ones before it once
-        :data:`TAKE_BATCH` have come (the recorder's work then runs in a tight loop), or at the
-        next watchdog turn, or when the last one has come."""
-        self._last_message = time.monotonic()
+        :data:`TAKE_BATCH` have come (the recorder's work then runs on arrays), or at the next
+        watchdog turn, or when the last one has come. The watchdog hears of the progress when
+        they are written (see :meth:`_write_taken`)."""
         self._counts[key] += 1
         self._taken.append((key, data))
-        if len(self._taken) >= TAKE_BATCH or self._counts == self._need:
+        self._left -= 1
+        if len(self._taken) >= TAKE_BATCH or (self._left <= 0 and self._counts == self._need):
             self._write_taken()
 
     def _write_taken(self) -> None:
         """Write what was taken, in the order it came; announce on /drive/recorded how far the
         recording goes; close the bag when every message has come."""
         taken, self._taken = self._taken, []
+        self._note_progress()
         try:
             self.rec.take(taken)
             self.rec.flush()
@@ -203,6 +206,17 @@ class MetricsLoggerNode(WatchedNode):
             progress = (float(through), through * self._ts, float(self.writer.message_count))
             self.pub_recorded.publish(CODECS["recorded"].encode(progress))
         self._maybe_done()
+
+    def _note_progress(self) -> None:
+        """Messages came since the last batch: the last one came now (for :meth:`finish`); the
+        watchdog's progress (see progressed) if records came among them. Once a batch, not
+        once a message: a watchdog turn comes every 0.1 s."""
+        records = self._counts["state"] + self._counts["reference"] + self._counts["command"]
+        if self._left != self._noted[0]:
+            self._last_message = time.monotonic()
+            if records != self._noted[1]:
+                self.progressed(started=self._started)
+            self._noted = (self._left, records)
 
     def check(self) -> None:
         if self._taken:
