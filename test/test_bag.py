@@ -275,6 +275,45 @@ def test_the_outcome_of_an_interrupted_run_is_an_error(tmp_path, monkeypatch):
     assert meta["rosbag2_bagfile_information"]["custom_data"]["outcome"].startswith("ERROR: ")
 
 
+def test_a_ctrl_c_while_a_batch_goes_into_the_bag_waits_for_the_batch(tmp_path, monkeypatch):
+    """The command line's Ctrl-C comes while the recorder is between the message index and the
+    chunk of a block: it is raised once the batch is in, and the bag reads whole (every message
+    the index names is in its chunk), its outcome interrupted."""
+    import os
+    import signal
+
+    from mcap.reader import make_reader
+
+    from predictive_drive import interrupts
+    from predictive_drive.mcapio import ChunkWriter
+
+    real = ChunkWriter._index_block
+    calls = []
+
+    def index_then_ctrl_c(self, *a, **kw):
+        real(self, *a, **kw)
+        calls.append(1)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGINT)  # the handler runs at the next bytecode
+
+    monkeypatch.setattr(ChunkWriter, "_index_block", index_then_ctrl_c)
+    before = signal.signal(signal.SIGINT, interrupts.interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_inprocess_to_bag(load_scenario("im_short", duration=0.25), tmp_path / "cut")
+    finally:
+        signal.signal(signal.SIGINT, before)
+    with open(tmp_path / "cut" / "cut_0.mcap", "rb") as f:
+        reader = make_reader(f)
+        stats = reader.get_summary().statistics
+        messages = sum(1 for _ in reader.iter_messages(log_time_order=False))
+    assert 1000 < messages == stats.message_count < 15_000
+    meta = yaml.safe_load((tmp_path / "cut" / "metadata.yaml").read_text())
+    assert meta["rosbag2_bagfile_information"]["custom_data"]["outcome"].startswith(
+        "ERROR: interrupted"
+    )
+
+
 def test_a_record_of_another_layout_is_read_by_field_name():
     """A command recorded before the field-oriented fields existed: every field it has lands in
     its place, the ones it lacks are NaN (old recordings stay readable)."""

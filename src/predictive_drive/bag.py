@@ -32,7 +32,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
-from . import __version__
+from . import __version__, interrupts
 from .errors import BagError
 from .interface import BAG_TOPICS, TOPICS
 from .mcapio import MAGIC, ChunkWriter, MessageGroup
@@ -393,7 +393,12 @@ class BagWriter:
 
     def close(self) -> None:
         """Index, footer and metadata.yaml; BagError if they cannot be written (the file then
-        reads as a cut recording, which ``predictive-drive repair`` rebuilds)."""
+        reads as a cut recording, which ``predictive-drive repair`` rebuilds). A Ctrl-C of the
+        command line meanwhile is raised once the bag is closed (see :mod:`.interrupts`)."""
+        with interrupts.held():
+            self._close()
+
+    def _close(self) -> None:
         if self._closed:
             return
         self._closed = True

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .. import interrupts
 from ..bag import BagWriter, check_new_bag, claim_bag_dir
 from ..config import load_scenario, scenario_with
 from ..core.control import EXTERNAL, strategy_names
@@ -105,17 +106,23 @@ def run_inprocess_to_bag(
                 record_tools=True,
                 live=None if live is None else live.offer,
             )
+
+            def record(states: bytes, references: bytes, commands: bytes) -> None:
+                with interrupts.held():  # a batch goes into the bag whole (see interrupts)
+                    rec.record_rows(states, references, commands)
+
             try:
-                trace = run_inprocess(
-                    sc, switches=switches, sinks=[rec.record_rows], progress=progress
-                )
+                trace = run_inprocess(sc, switches=switches, sinks=[record], progress=progress)
             except KeyboardInterrupt:
-                rec.finish("interrupted")
+                with interrupts.held():
+                    rec.finish("interrupted")
                 raise
             except Exception as e:
-                rec.finish(f"failed: {e}")
+                with interrupts.held():
+                    rec.finish(f"failed: {e}")
                 raise
-            rec.finish()
+            with interrupts.held():
+                rec.finish()
     finally:
         if live is not None:
             live.close()

@@ -22,6 +22,7 @@ from collections.abc import Sequence  # noqa: E402
 from types import ModuleType  # noqa: E402
 from typing import NoReturn  # noqa: E402
 
+from .. import interrupts  # noqa: E402
 from ..errors import Interrupted, PredictiveDriveError  # noqa: E402
 
 __all__ = ["DESCRIPTION", "VERBS", "build_parser", "main"]
@@ -90,10 +91,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 #: signals that came while the verbs were being imported
 _pending: list[int] = []
 
@@ -113,8 +110,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     as_json = _Parser.json_errors = "--json" in (sys.argv[1:] if argv is None else argv)
     try:
         parser = build_parser()
-        signal.signal(signal.SIGINT, _interrupt)
-        signal.signal(signal.SIGTERM, _interrupt)
+        # a KeyboardInterrupt, held back while a recording is being changed (see interrupts)
+        signal.signal(signal.SIGINT, interrupts.interrupt)
+        signal.signal(signal.SIGTERM, interrupts.interrupt)
         if _pending:
             raise KeyboardInterrupt
         args = parser.parse_args(argv)

@@ -1,0 +1,42 @@
+"""Ctrl-C (and SIGTERM) in the command line's own process: a KeyboardInterrupt wherever the work
+can stop, held back while a recording is being changed.
+
+A recorder takes a batch of steps into several structures at once (the chunk being filled, its
+message index, each channel's count); an interrupt between two of them would close the bag with an
+index that no longer matches its chunk. The command line's handler (:func:`interrupt`) therefore
+raises at once outside a :func:`held` block and at the block's end inside one. Processes that
+handle signals otherwise (the ROS nodes stop at their spin loop's next turn) are not affected.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+__all__ = ["held", "interrupt"]
+
+_depth = 0  #: held blocks the process is in
+_pending = False  #: an interrupt came inside one
+
+
+def interrupt(signum: int, frame: object) -> None:
+    """The command line's SIGINT / SIGTERM handler."""
+    global _pending
+    if _depth:
+        _pending = True
+        return
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def held() -> Iterator[None]:
+    """A block an interrupt does not cut: one that came meanwhile is raised when it ends."""
+    global _depth, _pending
+    _depth += 1
+    try:
+        yield
+    finally:
+        _depth -= 1
+        if not _depth and _pending:
+            _pending = False
+            raise KeyboardInterrupt
