@@ -166,6 +166,52 @@ def test_children_are_stopped_sigint_then_sigterm_then_sigkill(tmp_path, monkeyp
     assert procs["never"].returncode == -signal.SIGKILL
 
 
+def test_a_press_that_answers_the_stop_line_moves_the_stop_on(tmp_path, monkeypatch):
+    """The stop's line ("Ctrl-C again to ...") is printed once presses are counted: a Ctrl-C
+    that comes the instant it is read moves the stop on to SIGTERM (the child ends at once)
+    instead of being raised in the command (the flaky repeated-Ctrl-C test of the graph: a
+    press between the line and the stop taking presses over escaped, the stop began again
+    and the bag was killed unclosed)."""
+    import io
+    import os
+
+    from predictive_drive.ros import processes
+
+    class Escaped(Exception):
+        pass
+
+    def escape(_signum, _frame):  # what the command line's handler does with a press
+        raise Escaped
+
+    class Reader(io.StringIO):  # a user who presses Ctrl-C the moment the line shows
+        def write(self, text):
+            n = super().write(text)
+            if "Ctrl-C again" in text:
+                os.kill(os.getpid(), signal.SIGINT)
+            return n
+
+    said = Reader()
+    monkeypatch.setattr(sys, "stderr", said)
+    p = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(tmp_path / "child"), "SIGTERM"],
+        stdout=subprocess.PIPE, start_new_session=True,
+    )  # fmt: skip
+    before = signal.signal(signal.SIGINT, escape)
+    try:
+        assert p.stdout.readline() == b"ready\n"
+        t0 = time.monotonic()
+        left = processes.stop_processes(
+            {"child": p}, grace=60.0, announce="stopping (Ctrl-C again to hurry)"
+        )
+        assert left == [] and time.monotonic() - t0 < 30  # not the 60 s of the SIGINT phase
+    finally:
+        signal.signal(signal.SIGINT, before)
+        if p.poll() is None:
+            p.kill()
+        p.wait(timeout=10)
+    assert said.getvalue().splitlines()[1] == processes.AGAIN  # the press was acted on
+
+
 def test_a_closing_node_that_hangs_is_ended_by_sigalrm(tmp_path):
     """Without a launcher to escalate, a node whose closing hangs ends after CLOSE_TIMEOUT (set
     to 1 s here) by SIGALRM; Ctrl-C and SIGTERM during the closing do not cut it short."""

@@ -148,17 +148,16 @@ def run_graph(
             )
             _watch(children, watcher, bag)
         except KeyboardInterrupt:
+            # each line is printed once further presses are counted: a press that answers it
+            # is acted on, never raised in the instant before the stop takes presses over
             try:
-                print(
-                    "predictive-drive: interrupted: the nodes finish what is in flight and the "
-                    "bag closes (Ctrl-C again to have them finish quickly)",
-                    file=sys.stderr,
-                    flush=True,
+                left = stop_processes(
+                    procs,
+                    announce="predictive-drive: interrupted: the nodes finish what is in flight "
+                    "and the bag closes (Ctrl-C again to have them finish quickly)",
                 )
-                left = stop_processes(procs)  # further presses are counted there
-            except KeyboardInterrupt:  # again, in the instant before the stop began
-                print(AGAIN, file=sys.stderr, flush=True)
-                left = stop_processes(procs, urgent=True)
+            except KeyboardInterrupt:  # pressed twice before the stop took presses over
+                left = stop_processes(procs, urgent=True, announce=AGAIN)
             children.abandoned = bool(left)
             raise Interrupted(_interrupted_report(children, bag, left, sc.run.steps)) from None
         finally:

@@ -102,16 +102,23 @@ def is_stopped(pid: int) -> bool:
 
 
 def stop_processes(
-    procs: dict[str, subprocess.Popen[bytes]], *, grace: float = STOP_GRACE, urgent: bool = False
+    procs: dict[str, subprocess.Popen[bytes]],
+    *,
+    grace: float = STOP_GRACE,
+    urgent: bool = False,
+    announce: str = "",
 ) -> list[str]:
     """End every still-running child by PID: SIGINT (it finishes what is in flight and closes),
     then SIGTERM (it finishes quickly: use it at once, ``urgent``, when a peer is gone and the
     acknowledgements it owes will never come), then SIGKILL, each with a timeout; says so when
     it waits for a stopped one. A Ctrl-C (or SIGTERM) while it waits moves on to SIGTERM; one
-    more leaves the children to finish on their own. Returns the children still running then
-    (none when it saw them all end)."""
+    more leaves the children to finish on their own. ``announce``: a line for stderr, printed
+    once presses are counted (one that comes right after it is acted on, never raised).
+    Returns the children still running then (none when it saw them all end)."""
     phases = [(signal.SIGINT, grace), (signal.SIGTERM, TERM_GRACE), (signal.SIGKILL, 5.0)]
     with _counting_presses() as presses:
+        if announce:
+            print(announce, file=sys.stderr, flush=True)
         acted = 0  # presses acted on: each moves the stop on by one step
         for sig, wait in phases[1:] if urgent else phases:
             alive = {n: p for n, p in procs.items() if p.poll() is None}
