@@ -10,7 +10,8 @@ import random
 import numpy as np
 import pytest
 from mcap.reader import make_reader
-from mcap.stream_reader import StreamReader
+from mcap.records import Chunk, Message
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, IndexType, Writer
 
 from mcapcheck import rewrite_bag
@@ -216,6 +217,31 @@ def test_a_damaged_chunk_ends_the_reading_there(tmp_path):
     path.write_bytes(bytes(data))
     c = read_file(path)
     assert not c.complete and 0 < c.messages < whole
+
+
+def test_a_chunk_that_claims_more_bytes_than_memory_holds_ends_the_reading_there(tmp_path):
+    """A damaged chunk head (its uncompressed size 2**62 bytes) is a damaged chunk, not a
+    MemoryError: the messages of the chunks before it are read, as the library reads them."""
+    path = tmp_path / "f.mcap"
+    with open(path, "wb") as f:
+        play(Writer(f, chunk_size=32 * 1024, compression=CompressionType.ZSTD), calls(5, 4000))
+    with open(path, "rb") as f:
+        records = StreamReader(f, skip_magic=False, emit_chunks=True).records
+        two = [r for r in records if isinstance(r, Chunk)][:2]
+    expected = [(m.channel_id, m.log_time, m.sequence) for c in two for m in breakup_chunk(c)
+                if isinstance(m, Message)]  # fmt: skip
+    data = bytearray(path.read_bytes())
+    chunks, pos = [], len(b"\x89MCAP0\r\n")
+    while data[pos] != 0x0F:  # the top-level records up to the data end
+        if data[pos] == 0x06:
+            chunks.append(pos)
+        pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
+    head = chunks[2] + 9 + 16  # the third chunk's uncompressed size, after its start and end
+    data[head : head + 8] = (2**62).to_bytes(8, "little")
+    path.write_bytes(bytes(data))
+    c = read_file(path)
+    assert not c.complete
+    assert [(ch.id, lt, s) for ch, lt, _, s, _ in c.in_file_order()] == expected
 
 
 def test_the_fast_recording_path_writes_what_the_message_path_writes(tmp_path):

@@ -12,8 +12,8 @@ than simulating it. Here the hot paths are our own and everything rare is the li
   writes a file byte for byte equal to ``mcap.writer.Writer``'s (chunked, zstd at the library's
   level, every index, statistics, summary offsets, CRCs on; ``test_mcapio.py`` holds it to
   that, blocks included).
-- :func:`read_file` walks a file's top-level records, decompresses each chunk whole and notes
-  where each message lies — from the message index that follows the chunk, gathering the
+- :func:`read_file` walks a file's top-level records, decompresses each chunk whole into a
+  numpy array and notes where each message lies — from the message index that follows the chunk, gathering the
   message heads with numpy (record by record where there is no index) — so a caller can decode
   a channel of fixed-size messages in one numpy gather (:meth:`Messages.payloads`). A file cut
   short is read up to its last whole chunk, as the library's stream reader reads it.
@@ -21,6 +21,7 @@ than simulating it. Here the hot paths are our own and everything rare is the li
 
 from __future__ import annotations
 
+import io
 import struct
 import sys
 import zlib
@@ -54,7 +55,6 @@ MAGIC = b"\x89MCAP0\r\n"
 _MESSAGE = struct.Struct("<BQHIQQ")
 _MESSAGE_HEAD = _MESSAGE.size  # 31
 _RECORD = struct.Struct("<BQ")
-_MESSAGE_FIELDS = struct.Struct("<HIQQ")
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed crc
 #: a chunk record up to its compression string: opcode, length, the head, the string's length
 _CHUNK_RECORD = struct.Struct("<BQQQQII")
@@ -506,61 +506,78 @@ def _record_bytes(record: Any) -> bytes:
 
 # --- reading --------------------------------------------------------------------------------
 
+#: a message record's head as numpy reads it (see _MESSAGE)
+_HEAD = np.dtype(
+    [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("log", "<u8"), ("pub", "<u8")]
+)
+#: where a message lies and what its head says, one row per message (see :class:`Messages`)
+_WHERE = np.dtype(
+    [("start", "<i8"), ("length", "<i8"), ("log", "<u8"), ("pub", "<u8"), ("seq", "<u4"),
+     ("order", "<i8")]
+)  # fmt: skip
 
-@dataclass
+
 class Messages:
     """The messages of one channel, in file order: where each one's payload lies in
-    :attr:`McapContents.data`, its length, log and publish time and sequence number."""
+    :attr:`McapContents.data`, its length, log and publish time and sequence number, and its
+    place in the whole file's message order — each an array, one entry a message."""
 
-    channel: Channel
-    starts: list[int] = field(default_factory=list)
-    lengths: list[int] = field(default_factory=list)
-    log_times: list[int] = field(default_factory=list)
-    publish_times: list[int] = field(default_factory=list)
-    sequences: list[int] = field(default_factory=list)
-    #: position of each message in the whole file's message order
-    order: list[int] = field(default_factory=list)
+    def __init__(self, channel: Channel) -> None:
+        self.channel = channel
+        self._parts: list[np.ndarray] = []  #: while reading: a _WHERE array per chunk
+        self._seal()
+
+    def _add(self, rows: np.ndarray) -> None:
+        self._parts.append(rows)
+
+    def _seal(self) -> None:
+        """The file is read: the chunks' rows, one array per field."""
+        rows = np.concatenate([np.empty(0, _WHERE), *self._parts])
+        self._parts = []
+        self.starts: np.ndarray = rows["start"]
+        self.lengths: np.ndarray = rows["length"]
+        self.log_times: np.ndarray = rows["log"]
+        self.publish_times: np.ndarray = rows["pub"]
+        self.sequences: np.ndarray = rows["seq"]
+        self.order: np.ndarray = rows["order"]
 
     def __len__(self) -> int:
         return len(self.starts)
 
-    def payloads(self, data: bytes | bytearray, length: int) -> np.ndarray:
+    def payloads(self, data: np.ndarray, length: int) -> np.ndarray:
         """Every payload as a row of an (n, ``length``) uint8 array, in one numpy gather
         (every message of the channel must be ``length`` bytes long)."""
-        buf = np.frombuffer(data, dtype=np.uint8)
-        windows = np.lib.stride_tricks.sliding_window_view(buf, length)  # no copy
-        rows: np.ndarray = windows[np.asarray(self.starts, dtype=np.int64)]
+        windows = np.lib.stride_tricks.sliding_window_view(data, length)  # no copy
+        rows: np.ndarray = windows[self.starts]
         return rows
 
 
 @dataclass
 class McapContents:
-    """A file read by :func:`read_file`: its channels' messages (payloads in :attr:`data`), the
-    metadata records by name, and whether the file ended as a closed file does (data end,
-    summary, footer, magic)."""
+    """A file read by :func:`read_file`: its channels' messages (payloads in :attr:`data`, the
+    chunks' uncompressed bytes one after another), the metadata records by name, and whether the
+    file ended as a closed file does (data end, summary, footer, magic)."""
 
-    data: bytes
+    data: np.ndarray  #: uint8
     channels: dict[int, Messages]
     metadata: dict[str, dict[str, str]]
     complete: bool
     messages: int = 0
     #: while reading: the chunks' bytes (joined into :attr:`data` at the end), and their size
-    parts: list[bytes] = field(default_factory=list)
+    parts: list[np.ndarray] = field(default_factory=list)
     size: int = 0
 
     def payload(self, m: Messages, i: int) -> bytes:
-        s = m.starts[i]
-        return bytes(self.data[s : s + m.lengths[i]])
+        s = int(m.starts[i])
+        return self.data[s : s + int(m.lengths[i])].tobytes()
 
     def in_file_order(self) -> Iterator[tuple[Channel, int, int, int, bytes]]:
         """(channel, log time, publish time, sequence, payload) of every message, file order."""
-        where = []
-        for m in self.channels.values():
-            for i, n in enumerate(m.order):
-                where.append((n, m, i))
+        where = [(n, m, i) for m in self.channels.values() for i, n in enumerate(m.order.tolist())]
         where.sort(key=lambda w: w[0])
         for _, m, i in where:
-            yield m.channel, m.log_times[i], m.publish_times[i], m.sequences[i], self.payload(m, i)
+            log, pub, seq = int(m.log_times[i]), int(m.publish_times[i]), int(m.sequences[i])
+            yield m.channel, log, pub, seq, self.payload(m, i)
 
 
 def read_file(path: Any) -> McapContents:
@@ -572,41 +589,58 @@ def read_file(path: Any) -> McapContents:
         raw = f.read()
     if raw[: len(MAGIC)] != MAGIC:
         raise ValueError(f"{path}: not an MCAP file")
-    out = McapContents(b"", {}, {}, False)
+    records = _top_level(raw)
+    out = McapContents(np.empty(0, dtype=np.uint8), {}, {}, False)
     unzstd = zstandard.ZstdDecompressor()
-    pos, end = len(MAGIC), len(raw)
-    while pos + 9 <= end:
-        op, length = _RECORD.unpack_from(raw, pos)
-        body = pos + 9
-        if body + length > end:
-            break  # cut short
+    for i, (op, body, length) in enumerate(records):
         if op == Opcode.CHUNK:
             try:
-                _chunk(out, raw, body, unzstd, _message_index(raw, body + length))
-            except (zstandard.ZstdError, ValueError, struct.error):
-                break  # a chunk cut or damaged: what came before stands
+                _chunk(out, raw, body, unzstd, _message_index(raw, records, i + 1))
+            except (zstandard.ZstdError, ValueError, struct.error, MemoryError):
+                break  # a chunk cut or damaged (its size too): what came before stands
         elif op == Opcode.METADATA:
             md = Metadata.read(ReadDataStream(_view(raw, body, length)))
             out.metadata[md.name] = dict(md.metadata)
         elif op == Opcode.CHANNEL:
             _add_channel(out, Channel.read(ReadDataStream(_view(raw, body, length))))
         elif op == Opcode.MESSAGE:  # an unchunked file
-            record = raw[body - 9 : body + length]
-            _messages(out, record, out.size)
-            out.parts.append(record)
-            out.size += len(record)
+            record = np.frombuffer(raw, np.uint8, 9 + length, body - 9)
+            at = np.zeros(1, dtype=np.int64)
+            try:
+                _place(out, record, at, _heads(record, at))
+            except ValueError:
+                break
         elif op == Opcode.FOOTER:
             out.complete = raw[body + length : body + length + len(MAGIC)] == MAGIC
             break
-        pos = body + length
-    out.data, out.parts = b"".join(out.parts), []
+    if out.parts:
+        out.data, out.parts = np.concatenate(out.parts), []
+    for m in out.channels.values():
+        m._seal()
     return out
 
 
-def _view(raw: bytes, start: int, length: int) -> Any:
-    import io
+def _top_level(raw: bytes) -> list[tuple[int, int, int]]:
+    """(opcode, where its body begins, its length) of each whole top-level record, in order,
+    up to the first one cut short."""
+    records = []
+    pos, end = len(MAGIC), len(raw)
+    unpack = _RECORD.unpack_from
+    while pos + 9 <= end:
+        op, length = unpack(raw, pos)
+        body = pos + 9
+        if body + length > end:
+            break  # cut short
+        records.append((op, body, length))
+        if op == Opcode.FOOTER:
+            break
+        pos = body + length
+    return records
 
-    return io.BytesIO(raw[start : start + length])
+
+def _view(raw: bytes | np.ndarray, start: int, length: int) -> Any:
+    part = raw[start : start + length]
+    return io.BytesIO(part if isinstance(part, bytes) else part.tobytes())
 
 
 def _add_channel(out: McapContents, channel: Channel) -> None:
@@ -614,81 +648,32 @@ def _add_channel(out: McapContents, channel: Channel) -> None:
         out.channels[channel.id] = Messages(channel)
 
 
-def _message_index(raw: bytes, pos: int) -> np.ndarray | None:
+def _message_index(
+    raw: bytes, records: list[tuple[int, int, int]], first: int
+) -> np.ndarray | None:
     """Where a chunk's messages begin in it, from the message index records that follow the
-    chunk (sorted); None when there are none, or one is cut short."""
+    chunk (``records[first:]``, sorted); None when there are none, or one does not add up."""
     found = []
-    end = len(raw)
-    while pos + 9 <= end:
-        op, length = _RECORD.unpack_from(raw, pos)
+    for op, body, length in records[first:]:
         if op != Opcode.MESSAGE_INDEX:
             break
-        if pos + 9 + length > end or length < 6:
+        if length < 6:
             return None
-        (size,) = struct.unpack_from("<I", raw, pos + 11)
+        (size,) = struct.unpack_from("<I", raw, body + 2)
         if size % 16 or 6 + size > length:
             return None
-        pairs = np.frombuffer(raw, dtype="<u8", count=size // 8, offset=pos + 15)
+        pairs = np.frombuffer(raw, dtype="<u8", count=size // 8, offset=body + 6)
         found.append(pairs[1::2])
-        pos += 9 + length
     if not found:
         return None
     return np.sort(np.concatenate(found)).astype(np.int64)
 
 
-#: a message record's head as numpy reads it (see _MESSAGE)
-_HEAD = np.dtype(
-    [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("log", "<u8"), ("pub", "<u8")]
-)
-
-
-def _indexed_messages(out: McapContents, data: bytes, base: int, at: np.ndarray) -> bool:
-    """The records of a chunk's bytes whose messages begin at ``at`` (its message index), the
-    message heads gathered with numpy and the records between them (channels) read one by one.
-    False, with nothing added, when the index does not cover every message of the chunk."""
-    size = len(data)
-    if not len(at) or at[0] < 0 or at[-1] + _MESSAGE_HEAD > size:
-        return False
-    buf = np.frombuffer(data, dtype=np.uint8)
-    heads = buf[at[:, None] + np.arange(_MESSAGE_HEAD)].view(_HEAD).ravel()
-    ends = at + 9 + heads["len"].astype(np.int64)
-    if (heads["op"] != Opcode.MESSAGE).any() or (ends[:-1] > at[1:]).any() or ends[-1] > size:
-        return False
-    # what lies between the messages: other records (channels, schemas), never a message
-    channels = []
-    starts, stops = np.append(0, ends), np.append(at, size)
-    gaps = np.flatnonzero(stops > starts)
-    for start, stop in zip(starts[gaps].tolist(), stops[gaps].tolist()):
-        pos = start
-        while pos + 9 <= stop:
-            op, length = _RECORD.unpack_from(data, pos)
-            if op == Opcode.MESSAGE:
-                return False  # a message the index does not have
-            if op == Opcode.CHANNEL:
-                channels.append(Channel.read(ReadDataStream(_view(bytes(data), pos + 9, length))))
-            pos += 9 + length
-    for channel in channels:
-        _add_channel(out, channel)
-    ids = heads["ch"]
-    if not set(np.unique(ids).tolist()) <= set(out.channels):
-        raise ValueError("a message of a channel the file never declared")
-    order = np.arange(out.messages, out.messages + len(at))
-    for ch in np.unique(ids).tolist():
-        mine = ids == ch
-        m = out.channels[ch]
-        m.starts += (at[mine] + base + _MESSAGE_HEAD).tolist()
-        m.lengths += (heads["len"][mine].astype(np.int64) - 22).tolist()
-        m.log_times += heads["log"][mine].tolist()
-        m.publish_times += heads["pub"][mine].tolist()
-        m.sequences += heads["seq"][mine].tolist()
-        m.order += order[mine].tolist()
-    out.messages += len(at)
-    return True
-
-
 def _chunk(
     out: McapContents, raw: bytes, body: int, unzstd: Any, index: np.ndarray | None = None
 ) -> None:
+    """A chunk's records: its bytes decompressed into their place in ``out.data``, its channels
+    and messages noted (from ``index``, its message index, where that covers the chunk)."""
     _start, _end, size, crc = _CHUNK_HEAD.unpack_from(raw, body)
     pos = body + _CHUNK_HEAD.size
     (n,) = struct.unpack_from("<I", raw, pos)
@@ -696,40 +681,116 @@ def _chunk(
     pos += 4 + n
     (clen,) = struct.unpack_from("<Q", raw, pos)
     pos += 8
-    blob = raw[pos : pos + clen]
+    blob = memoryview(raw)[pos : pos + clen]
+    data = np.empty(size, dtype=np.uint8)
     if compression == "zstd":
-        data = unzstd.decompress(blob, max_output_size=size)
+        if _decompress_into(unzstd, blob, data) != size:
+            raise ValueError("chunk damaged")
+    elif compression == "" and len(blob) == size:
+        data[:] = np.frombuffer(blob, dtype=np.uint8)
     elif compression == "":
-        data = blob
+        raise ValueError("chunk damaged")
     else:
         raise ValueError(f"compression {compression!r} is not read here")
-    if len(data) != size or (crc and zlib.crc32(data) != crc):
+    if crc and zlib.crc32(data.data) != crc:
         raise ValueError("chunk damaged")
-    if index is None or not _indexed_messages(out, data, out.size, index):
-        _messages(out, data, out.size)
+    heads = None if index is None else _indexed_heads(out, data, index)
+    if index is None or heads is None:
+        index = _record_positions(out, data)
+        heads = _heads(data, index)
+    _place(out, data, index, heads)
+
+
+def _decompress_into(unzstd: Any, blob: memoryview, into: np.ndarray) -> int:
+    """Decompress one zstd frame into ``into``; how many bytes it holds (-1: more than fit)."""
+    reader = unzstd.stream_reader(blob)
+    view = into.data
+    got = 0
+    while got < len(into):
+        n = reader.readinto(view[got:])
+        if not n:
+            return got
+        got += n
+    return -1 if reader.read(1) else got
+
+
+def _heads(data: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The heads of the message records beginning at ``at`` in ``data`` (a _HEAD array)."""
+    rows = np.lib.stride_tricks.sliding_window_view(data, _MESSAGE_HEAD)[at]
+    heads: np.ndarray = rows.view(_HEAD).ravel()
+    return heads
+
+
+def _indexed_heads(out: McapContents, data: np.ndarray, at: np.ndarray) -> np.ndarray | None:
+    """The heads of a chunk's messages where its message index says they begin (``at``), once
+    checked against the chunk's bytes; the records between them (channels, schemas) are read
+    one by one and their channels added. None when the index does not cover every message of
+    the chunk."""
+    size = len(data)
+    if not len(at) or at[0] < 0 or at[-1] + _MESSAGE_HEAD > size:
+        return None
+    heads = _heads(data, at)
+    ends = at + 9 + heads["len"].astype(np.int64)
+    if (heads["op"] != Opcode.MESSAGE).any() or (ends[:-1] > at[1:]).any() or ends[-1] > size:
+        return None
+    # what lies between the messages: other records (channels, schemas), never a message
+    channels = []
+    starts, stops = np.append(0, ends), np.append(at, size)
+    gaps = np.flatnonzero(stops > starts)
+    for start, stop in zip(starts[gaps].tolist(), stops[gaps].tolist()):
+        pos = start
+        while pos + 9 <= stop:
+            op, length = _RECORD.unpack_from(data.data, pos)
+            if op == Opcode.MESSAGE:
+                return None  # a message the index does not have
+            if op == Opcode.CHANNEL:
+                channels.append(_channel(data, pos, length))
+            pos += 9 + length
+    for channel in channels:
+        _add_channel(out, channel)
+    return heads
+
+
+def _record_positions(out: McapContents, data: np.ndarray) -> np.ndarray:
+    """Where the messages of a chunk's (or an unchunked file's) records begin, read record by
+    record (a chunk with no message index); its channels are added as they come."""
+    at = []
+    pos, end = 0, len(data)
+    unpack = _RECORD.unpack_from
+    view = data.data
+    while pos + 9 <= end:
+        op, length = unpack(view, pos)
+        if op == Opcode.MESSAGE:
+            at.append(pos)
+        elif op == Opcode.CHANNEL:
+            _add_channel(out, _channel(data, pos, length))
+        pos += 9 + length
+    return np.array(at, dtype=np.int64)
+
+
+def _channel(data: np.ndarray, pos: int, length: int) -> Channel:
+    """The channel record at ``pos`` of a chunk's bytes."""
+    channel: Channel = Channel.read(ReadDataStream(_view(data, pos + 9, length)))
+    return channel
+
+
+def _place(out: McapContents, data: np.ndarray, at: np.ndarray, heads: np.ndarray) -> None:
+    """A chunk's bytes (or an unchunked message's record) appended to ``out``: its messages
+    begin at ``at`` in them, with these ``heads``; noted by channel."""
+    if len(at):
+        ids = heads["ch"]
+        found = np.unique(ids).tolist()
+        if not set(found) <= set(out.channels):
+            raise ValueError("a message of a channel the file never declared")
+        rows = np.empty(len(at), _WHERE)
+        rows["start"] = at + out.size + _MESSAGE_HEAD
+        rows["length"] = heads["len"].astype(np.int64) - 22
+        rows["log"] = heads["log"]
+        rows["pub"] = heads["pub"]
+        rows["seq"] = heads["seq"]
+        rows["order"] = np.arange(out.messages, out.messages + len(at))
+        for ch in found:
+            out.channels[ch]._add(rows[ids == ch] if len(found) > 1 else rows)
+        out.messages += len(at)
     out.parts.append(data)
     out.size += len(data)
-
-
-def _messages(out: McapContents, data: Any, base: int) -> None:
-    """The records of a chunk's (or an unchunked file's) bytes: channels and messages."""
-    pos, end = 0, len(data)
-    unpack, fields = _RECORD.unpack_from, _MESSAGE_FIELDS.unpack_from
-    channels = out.channels
-    n = out.messages
-    while pos + 9 <= end:
-        op, length = unpack(data, pos)
-        if op == 5:
-            ch, seq, log, pub = fields(data, pos + 9)
-            m = channels[ch]
-            m.starts.append(base + pos + _MESSAGE_HEAD)
-            m.lengths.append(length - 22)
-            m.log_times.append(log)
-            m.publish_times.append(pub)
-            m.sequences.append(seq)
-            m.order.append(n)
-            n += 1
-        elif op == Opcode.CHANNEL:
-            _add_channel(out, Channel.read(ReadDataStream(_view(bytes(data), pos + 9, length))))
-        pos += 9 + length
-    out.messages = n

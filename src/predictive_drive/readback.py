@@ -115,7 +115,7 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
             )
         elif topic == TOPICS["parameter_events"].name:
             events += [
-                (m.log_times[i], decode_parameter_event(contents.payload(m, i)))
+                (int(m.log_times[i]), decode_parameter_event(contents.payload(m, i)))
                 for i in range(len(m))
             ]
     # keep the longest prefix of whole steps: states and references 0..n, commands 0..n-1
@@ -151,7 +151,7 @@ def _values(
     another (a recording of another version, a controller of one's own) one by one with
     ``decode`` (default: by field name)."""
     width = len(codec.fields)
-    if all(n == codec.size for n in m.lengths):
+    if (m.lengths == codec.size).all():
         values = codec.exact_rows(m.payloads(contents.data, codec.size))
         if values is not None:
             return values.reshape(len(m), width)
