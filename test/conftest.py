@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import random
+import warnings
 
 import pytest
 
@@ -37,6 +38,20 @@ def colcon_built(tmp_path_factory):
 def wheel_installed(tmp_path_factory):
     """The package's wheel installed into a fresh venv (once per test session)."""
     return wheel_install(tmp_path_factory.mktemp("wheel"))
+
+
+@pytest.fixture(scope="session")
+def typescript_reader(tmp_path_factory):
+    """``check(mcap_path)``: Foxglove's TypeScript reader (see ts_reader.py) reads the file as
+    the mcap library does; None where Node.js is missing or npm cannot install it (a test that
+    checks more than that goes on without it)."""
+    import ts_reader
+
+    folder = ts_reader.install(tmp_path_factory.mktemp("ts_reader"))
+    if isinstance(folder, str):
+        warnings.warn(f"Foxglove's TypeScript reader is not checked: {folder}", stacklevel=1)
+        return None
+    return lambda mcap: ts_reader.assert_reads_like_the_library(folder, mcap)
 
 
 @pytest.fixture

@@ -130,6 +130,17 @@ def test_mcap_ros2_support_decodes(recorded):
     assert list(msgs[5].decoded_message.data)[0] == 5.0
 
 
+def test_foxglove_typescript_reader_reads_every_message(tmp_path, typescript_reader):
+    """Foxglove's and Lichtblick's reader (@mcap/core) reads a bag of several chunks, with a
+    parameter change, as the mcap library reads it (test/ts_reader.py)."""
+    if typescript_reader is None:
+        pytest.skip("no Node.js, or npm could not install @mcap/core (see the warning)")
+    out = tmp_path / "ts"
+    n = run_inprocess_to_bag(load_scenario("im_short", duration=0.4), out, switches=SWITCH)
+    assert n == 8000
+    typescript_reader(out / "ts_0.mcap")
+
+
 def test_truncated_file_reads_up_to_the_cut(recorded, tmp_path):
     out, _, n = recorded
     cut = tmp_path / "cut"
