@@ -244,6 +244,38 @@ def test_a_chunk_that_claims_more_bytes_than_memory_holds_ends_the_reading_there
     assert [(ch.id, lt, s) for ch, lt, _, s, _ in c.in_file_order()] == expected
 
 
+@pytest.mark.parametrize("length", [2**40, 3], ids=["past-the-chunk", "shorter-than-a-head"])
+def test_a_chunk_whose_record_length_is_wrong_ends_the_reading_there(tmp_path, length):
+    """Uncompressed chunks without CRCs or message indexes (nothing else catches it): a message
+    record whose length runs past its chunk, or is shorter than a message's head, damages its
+    chunk; the chunks before it are read, as the library reads them."""
+    path = tmp_path / "f.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f, chunk_size=32 * 1024, compression=CompressionType.NONE,
+                   index_types=IndexType.NONE, enable_crcs=False)  # fmt: skip
+        play(w, calls(5, 4000))
+    with open(path, "rb") as f:
+        records = StreamReader(f, skip_magic=False, emit_chunks=True).records
+        two = [r for r in records if isinstance(r, Chunk)][:2]
+    expected = [(m.channel_id, m.log_time, m.sequence) for c in two for m in breakup_chunk(c)
+                if isinstance(m, Message)]  # fmt: skip
+    data = bytearray(path.read_bytes())
+    chunks, pos = [], len(b"\x89MCAP0\r\n")
+    while data[pos] != 0x0F:  # the top-level records up to the data end
+        if data[pos] == 0x06:
+            chunks.append(pos)
+        pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
+    third = chunks[2] + 9 + 8 + 8 + 8 + 4  # its records: after start, end, size, crc,
+    third += 4 + 8  # an empty compression string and the records' length
+    while data[third] != 0x05:  # its first message
+        third += 9 + int.from_bytes(data[third + 1 : third + 9], "little")
+    data[third + 1 : third + 9] = length.to_bytes(8, "little")
+    path.write_bytes(bytes(data))
+    c = read_file(path)
+    assert not c.complete
+    assert [(ch.id, lt, s) for ch, lt, _, s, _ in c.in_file_order()] == expected
+
+
 def test_the_fast_recording_path_writes_what_the_message_path_writes(tmp_path):
     """In-process recording takes each step's three records as one pack (and the running
     metrics a batch at a time); with a live view it goes message by message. Both bags hold

@@ -731,7 +731,12 @@ def _indexed_heads(out: McapContents, data: np.ndarray, at: np.ndarray) -> np.nd
         return None
     heads = _heads(data, at)
     ends = at + 9 + heads["len"].astype(np.int64)
-    if (heads["op"] != Opcode.MESSAGE).any() or (ends[:-1] > at[1:]).any() or ends[-1] > size:
+    if (
+        (heads["op"] != Opcode.MESSAGE).any()
+        or (heads["len"] < _MESSAGE_HEAD - 9).any()
+        or (ends[:-1] > at[1:]).any()
+        or ends[-1] > size
+    ):
         return None
     # what lies between the messages: other records (channels, schemas), never a message
     channels = []
@@ -760,7 +765,11 @@ def _record_positions(out: McapContents, data: np.ndarray) -> np.ndarray:
     view = data.data
     while pos + 9 <= end:
         op, length = unpack(view, pos)
+        if pos + 9 + length > end:
+            raise ValueError("a record runs past the end of its chunk")
         if op == Opcode.MESSAGE:
+            if length < _MESSAGE_HEAD - 9:
+                raise ValueError("a message record shorter than a message's head")
             at.append(pos)
         elif op == Opcode.CHANNEL:
             _add_channel(out, _channel(data, pos, length))
