@@ -219,26 +219,36 @@ def test_a_damaged_chunk_ends_the_reading_there(tmp_path):
     assert not c.complete and 0 < c.messages < whole
 
 
-def test_a_chunk_that_claims_more_bytes_than_memory_holds_ends_the_reading_there(tmp_path):
-    """A damaged chunk head (its uncompressed size 2**62 bytes) is a damaged chunk, not a
-    MemoryError: the messages of the chunks before it are read, as the library reads them."""
-    path = tmp_path / "f.mcap"
-    with open(path, "wb") as f:
-        play(Writer(f, chunk_size=32 * 1024, compression=CompressionType.ZSTD), calls(5, 4000))
+def damage_the_third_chunk(path, damage) -> list[tuple]:
+    """``damage(data, at)`` the file's third chunk record (``at``: where it begins in the
+    bytearray ``data``); returns (channel id, log time, sequence) of the messages of the two
+    chunks before it, as the library reads them: what a reader should still read."""
     with open(path, "rb") as f:
         records = StreamReader(f, skip_magic=False, emit_chunks=True).records
         two = [r for r in records if isinstance(r, Chunk)][:2]
-    expected = [(m.channel_id, m.log_time, m.sequence) for c in two for m in breakup_chunk(c)
-                if isinstance(m, Message)]  # fmt: skip
     data = bytearray(path.read_bytes())
     chunks, pos = [], len(b"\x89MCAP0\r\n")
     while data[pos] != 0x0F:  # the top-level records up to the data end
         if data[pos] == 0x06:
             chunks.append(pos)
         pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
-    head = chunks[2] + 9 + 16  # the third chunk's uncompressed size, after its start and end
-    data[head : head + 8] = (2**62).to_bytes(8, "little")
+    damage(data, chunks[2])
     path.write_bytes(bytes(data))
+    return [(m.channel_id, m.log_time, m.sequence) for c in two for m in breakup_chunk(c)
+            if isinstance(m, Message)]  # fmt: skip
+
+
+def test_a_chunk_that_claims_more_bytes_than_memory_holds_ends_the_reading_there(tmp_path):
+    """A damaged chunk head (its uncompressed size 2**62 bytes) is a damaged chunk, not a
+    MemoryError: the messages of the chunks before it are read, as the library reads them."""
+    path = tmp_path / "f.mcap"
+    with open(path, "wb") as f:
+        play(Writer(f, chunk_size=32 * 1024, compression=CompressionType.ZSTD), calls(5, 4000))
+
+    def claim(data, at):  # the uncompressed size, after the chunk's start and end times
+        data[at + 9 + 16 : at + 9 + 24] = (2**62).to_bytes(8, "little")
+
+    expected = damage_the_third_chunk(path, claim)
     c = read_file(path)
     assert not c.complete
     assert [(ch.id, lt, s) for ch, lt, _, s, _ in c.in_file_order()] == expected
@@ -254,23 +264,16 @@ def test_a_chunk_whose_record_length_is_wrong_ends_the_reading_there(tmp_path, l
         w = Writer(f, chunk_size=32 * 1024, compression=CompressionType.NONE,
                    index_types=IndexType.NONE, enable_crcs=False)  # fmt: skip
         play(w, calls(5, 4000))
-    with open(path, "rb") as f:
-        records = StreamReader(f, skip_magic=False, emit_chunks=True).records
-        two = [r for r in records if isinstance(r, Chunk)][:2]
-    expected = [(m.channel_id, m.log_time, m.sequence) for c in two for m in breakup_chunk(c)
-                if isinstance(m, Message)]  # fmt: skip
-    data = bytearray(path.read_bytes())
-    chunks, pos = [], len(b"\x89MCAP0\r\n")
-    while data[pos] != 0x0F:  # the top-level records up to the data end
-        if data[pos] == 0x06:
-            chunks.append(pos)
-        pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
-    third = chunks[2] + 9 + 8 + 8 + 8 + 4  # its records: after start, end, size, crc,
-    third += 4 + 8  # an empty compression string and the records' length
-    while data[third] != 0x05:  # its first message
-        third += 9 + int.from_bytes(data[third + 1 : third + 9], "little")
-    data[third + 1 : third + 9] = length.to_bytes(8, "little")
-    path.write_bytes(bytes(data))
+
+    def cut(data, at):
+        # the chunk's records begin after its start, end, size, crc, an empty compression
+        # string and the records' length
+        pos = at + 9 + 8 + 8 + 8 + 4 + 4 + 8
+        while data[pos] != 0x05:  # its first message
+            pos += 9 + int.from_bytes(data[pos + 1 : pos + 9], "little")
+        data[pos + 1 : pos + 9] = length.to_bytes(8, "little")
+
+    expected = damage_the_third_chunk(path, cut)
     c = read_file(path)
     assert not c.complete
     assert [(ch.id, lt, s) for ch, lt, _, s, _ in c.in_file_order()] == expected
