@@ -304,6 +304,46 @@ def test_a_file_that_is_no_recording_is_called_what_it_is(tmp_path, content, wor
     assert words in r.stderr, r.stderr
 
 
+@pytest.mark.parametrize("verb", ["report", "repair"])
+def test_random_bytes_in_a_bag_folder_are_not_an_mcap_file(tmp_path, verb):
+    """A bag folder whose .mcap holds random bytes is named what it is, as the file itself is
+    (was: "cut short before anything was recorded (… the file's header only)"); repair leaves
+    it as it was."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    junk = os.urandom(200_000)
+    (bag / "bag_0.mcap").write_bytes(junk)
+    r = cli(verb, str(bag))
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "not an MCAP file (it does not begin with MCAP's magic bytes)" in r.stderr, r.stderr
+    assert sorted(p.name for p in bag.iterdir()) == ["bag_0.mcap"]
+    assert (bag / "bag_0.mcap").read_bytes() == junk
+
+
+def _first_chunk_at(path: Path) -> int:
+    """The offset of a file's first Chunk record (MCAP records: opcode, u64 length, body)."""
+    data = path.read_bytes()
+    at = 8  # the magic
+    while data[at] != 0x06:  # opcode Chunk
+        at += 9 + int.from_bytes(data[at + 1 : at + 9], "little")
+    return at
+
+
+def test_repair_of_a_bag_without_a_complete_step_leaves_it_as_it_was(short_bag, tmp_path):
+    """Cut inside the first chunk: the metadata is there, no step is. repair says so and
+    changes nothing (was: the file rewritten, then "holds no complete step")."""
+    cut = tmp_path / "cut"
+    rewrite_bag(short_bag, cut, chunk_size=16 * 1024)
+    (f,) = cut.glob("*.mcap")
+    f.write_bytes(f.read_bytes()[: _first_chunk_at(f) + 100])
+    before, held = f.read_bytes(), sorted(p.name for p in cut.iterdir())
+    r = cli("repair", str(cut))
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "the recording holds no complete step; nothing repaired: the file is left as it " \
+        "was" in r.stderr  # fmt: skip
+    assert f.read_bytes() == before and sorted(p.name for p in cut.iterdir()) == held
+
+
 def test_layout_to_a_path_that_cannot_be_written_is_an_error():
     r = cli("layout", "--out", "/proc/drive.foxglove.json")
     assert r.returncode == 2 and "Traceback" not in r.stderr

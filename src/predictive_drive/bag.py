@@ -518,6 +518,7 @@ def mcap_file(bag: str | Path) -> Path:
                 f"this package has one: give the file itself"
             )
         _check_metadata_yaml(p / "metadata.yaml")
+        _check_magic(files[0])
         return files[0]
     if not p.is_file():
         raise BagError(f"{p}: no such bag directory or .mcap file")

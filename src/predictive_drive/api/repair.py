@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import repair_bag
+from ..errors import BagError
 from ..readback import read_bag
 
 __all__ = ["Repaired", "repair"]
@@ -35,6 +36,11 @@ class Repaired:
 
 
 def repair(bag: str | Path) -> Repaired:
-    """Repair ``bag`` in place; says what it holds now and where the original went."""
+    """Repair ``bag`` in place; says what it holds now and where the original went. A file that
+    is no recording, or holds no complete step, is left as it is (BagError says why)."""
+    try:
+        read_bag(bag)  # read as far as it goes, whole or cut: does it hold a step at all?
+    except BagError as e:
+        raise BagError(f"{e}; nothing repaired: the file is left as it was") from None
     r = repair_bag(bag)
     return Repaired(r.bag, r.original is not None, r.original, r.messages, read_bag(r.bag)[0].steps)
