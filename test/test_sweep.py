@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from predictive_drive.api.report import metrics_of, report
-from predictive_drive.api.sweep import MEASURED, Case, grid, parse_set, run_cases, sweep
+from predictive_drive.api.sweep import MEASURED, Case, Row, grid, parse_set, run_cases, sweep
 from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import ConfigError
@@ -124,6 +124,70 @@ def test_a_key_the_scenario_lacks_fails_before_anything_runs(tmp_path):
     with pytest.raises(ConfigError, match="not a strategy of mptc_im; valid: mptc, mptc_db"):
         sweep("im_short", strategies=["dtc"])
     assert not (tmp_path / "t").exists()
+
+
+@pytest.mark.core
+@pytest.mark.parametrize("jobs", [0, -2])
+def test_jobs_below_one_is_refused(jobs):
+    """(was: -2 ran silently on one process)"""
+    with pytest.raises(ConfigError, match=rf"--jobs {jobs}: the number of local processes must "
+                       r"be at least 1"):  # fmt: skip
+        sweep("im_short", jobs=jobs, duration=0.01)
+
+
+@pytest.mark.core
+def test_ctrl_c_during_a_recorded_sweep_closes_the_cut_bags_and_says_so(tmp_path):
+    """Interrupted while recorded runs are in flight (here right after the first, short, row):
+    the runs in flight stop and close their bags, each readable with the steps it holds, and
+    the result says which bags were cut (was: their workers killed, the files left without an
+    index, unmentioned)."""
+    from predictive_drive.bag import check_new_bag
+    from predictive_drive.readback import bag_status
+
+    def progress(done, total):  # once a long run is in flight (its bag begun)
+        wait_until(lambda: any(b.exists() for b in bags[1:]), "no long run began", timeout=60)
+        raise KeyboardInterrupt
+
+    bags = [tmp_path / "bags" / f"{i}" for i in range(4)]
+    cases = [Case("db_mptc", bag=str(check_new_bag(bags[0])), duration=0.01)] + [
+        Case("db_mptc", {"torque_controller.lambda_psi": v}, bag=str(check_new_bag(b)),
+             duration=60.0)
+        for v, b in zip((10, 20, 30), bags[1:])
+    ]  # fmt: skip
+    before = set(descendants(os.getpid()))
+    r = run_cases("im_short", cases, jobs=2, progress=progress)
+    assert r.interrupted and [row.bag for row in r.rows] == [str(bags[0])]
+    assert workers_left(before) == []
+    assert r.cut, "a long run began: its bag is said to be cut"
+    for b in bags[1:]:  # each closed with what it holds and said to be, or never begun
+        if b.exists():
+            status = bag_status(b)
+            assert status.closed and 0 < status.steps < 1_200_000, status
+            assert f"{b}: cut at {status.steps} of 1200000 steps, closed (readable)" in r.cut
+        else:  # not begun, or begun and stopped before its first whole step
+            assert f"{b}: removed (no whole step)" in r.cut or not any(str(b) in c for c in r.cut)
+
+
+@pytest.mark.core
+def test_after_ctrl_c_a_complete_bag_is_a_row_and_an_unclosed_one_is_removed(tmp_path):
+    """What the sweep makes of the bags of the runs whose rows it did not get: a bag holding the
+    whole run is its row (the run ended as Ctrl-C came); one its writer could not close is
+    removed, and said to be."""
+    from predictive_drive.api.run import run_inprocess_to_bag
+    from predictive_drive.api.sweep import INTERRUPTED, _settle
+    from predictive_drive.config import load_scenario
+
+    whole, killed = tmp_path / "whole", tmp_path / "killed"
+    sc = load_scenario("im_short", strategy="db_mptc", duration=0.02)
+    for b in (whole, killed):
+        run_inprocess_to_bag(sc, b)
+    (f,) = killed.glob("*.mcap")
+    f.write_bytes(f.read_bytes()[:-2000])  # no summary, no footer: as a killed writer leaves it
+    cases = [Case("db_mptc", bag=str(whole)), Case("db_mptc", bag=str(killed))]
+    rows, cut = _settle({1: Row("db_mptc", {}, error=INTERRUPTED, bag=str(killed))}, cases)
+    assert [row.bag for row in rows] == [str(whole)] and rows[0].metrics.steps > 0
+    assert cut == [f"{killed}: removed (its writer was ended outright)"]
+    assert not killed.exists() and whole.exists()
 
 
 @pytest.mark.core

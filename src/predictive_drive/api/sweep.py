@@ -7,7 +7,9 @@ settings applied, in a worker: a process of the local pool, or a Dask worker (``
 the worker gets the scenario *text*, so a remote machine needs the package but not the scenario
 files. Its row (strategy, settings, every metric, or the error) does not depend on where it ran
 (bit for bit, the measured timings aside: see :data:`MEASURED`). A failed case is a row with its
-error; Ctrl-C (or SIGTERM) keeps the rows finished so far.
+error; Ctrl-C (or SIGTERM) keeps the rows finished so far: the runs in flight on the local cores
+are told to stop (a recorded one closes its bag, readable), and :attr:`SweepResult.cut` says what
+became of the bags of the runs that did not finish.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import itertools
 import math
 import multiprocessing
 import os
+import shutil
 import signal
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -26,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .. import interrupts
 from ..config import apply_settings, load_scenario_text, resolve_scenario_path
 from ..core.control import strategy_names
 from ..core.metrics import Metrics
@@ -97,6 +101,9 @@ class SweepResult:
     interrupted: bool = False
     files: list[str] = field(default_factory=list)
     figures: list[str] = field(default_factory=list)
+    #: interrupted with ``--record``: what became of each bag of a run that did not finish (closed
+    #: readable with the steps it holds, or removed); a run whose bag is complete is a row
+    cut: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -106,6 +113,7 @@ class SweepResult:
             "wall_s": self.wall_s,
             "interrupted": self.interrupted,
             "rows": [r.as_dict() for r in self.rows],
+            "cut": self.cut,
             "files": self.files,
             "figures": self.figures,
         }
@@ -174,8 +182,13 @@ def run_case(
     """One case, start to end, in whichever process runs it: the scenario text with its
     settings, run in-process (recorded when the case names a bag), its metrics and ``analysis``.
     Never raises for the case's own failure: that is the row's error."""
+    global _in_case
     t0 = time.perf_counter()
     row = Row(case.strategy, dict(case.settings), bag=case.bag)
+    if _stopping:  # the sweep was interrupted before this case began: it never runs
+        row.error = NOT_RUN
+        return row
+    _in_case = True
     try:
         sc = load_scenario_text(text, where).with_strategy(case.strategy)
         if case.duration is not None or duration is not None:
@@ -195,14 +208,39 @@ def run_case(
             row.extra = analysis(trace, sc)
     except (PredictiveDriveError, ArithmeticError, ValueError) as e:
         row.error = f"{type(e).__name__}: {e}"
+    except KeyboardInterrupt:  # told to stop (see _stop_case): a recorded run closed its bag
+        row.error = INTERRUPTED
+    finally:
+        _in_case = False
     row.wall_s = time.perf_counter() - t0
     return row
 
 
+#: a row's error when the sweep stopped its run midway, when it stopped before the run began,
+#: and (its start) when the worker running it ended before it did
+INTERRUPTED, NOT_RUN = "interrupted", "not run: the sweep was interrupted"
+WORKER_ENDED = "its worker ended"
+#: a local worker: it runs a case now, and the sweep has told it to stop (see _stop_case)
+_in_case = _stopping = False
+#: s the sweep waits, once interrupted, for the runs in flight to stop and close their bags
+STOP_WAIT = 10.0
+
+
+def _stop_case(signum: int, frame: object) -> None:
+    """A local worker's SIGTERM: the sweep was interrupted. The case in progress stops where
+    it is (its bag closes with what it holds; see :func:`interrupts.interrupt`), and no case
+    starts after it."""
+    global _stopping
+    _stopping = True
+    if _in_case:
+        interrupts.interrupt(signum, frame)
+
+
 def _quiet_worker() -> None:
-    """A local worker leaves Ctrl-C to the sweep, which keeps what is done and stops it."""
+    """A local worker leaves Ctrl-C to the sweep, which keeps what is done and stops it (by
+    SIGTERM: :func:`_stop_case`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, _stop_case)
 
 
 @contextmanager
@@ -210,6 +248,8 @@ def _executor(scheduler: str | None, jobs: int | None, cases: int) -> Iterator[t
     """The pool the cases go to, as a concurrent.futures executor: the local cores' processes,
     or a Dask cluster's workers."""
     if scheduler is None:
+        if jobs is not None and jobs < 1:
+            raise ConfigError(f"--jobs {jobs}: the number of local processes must be at least 1")
         workers = max(1, min(cases, jobs or os.cpu_count() or 1))
         # forkserver, not fork: the calling process may hold threads (rclpy, a live view, a
         # Dask client) whose locks a forked child would inherit held
@@ -275,13 +315,7 @@ def run_cases(
         }
         try:
             for fut in cf.as_completed(futures):
-                i = futures[fut]
-                try:
-                    done[i] = fut.result()
-                except Exception as e:  # noqa: BLE001 — the worker died, not the case
-                    done[i] = Row(
-                        cases[i].strategy, dict(cases[i].settings), error=f"{type(e).__name__}: {e}"
-                    )
+                done[futures[fut]] = _row_of(fut, cases[futures[fut]])
                 if progress is not None:
                     progress(len(done), len(cases))
         except KeyboardInterrupt:
@@ -289,9 +323,20 @@ def run_cases(
             for fut in futures:
                 fut.cancel()
             if scheduler is None:
-                _stop_local(pool)
-    rows = [done[i] for i in sorted(done)]
-    return SweepResult(path.stem, rows, len(cases), engine, time.perf_counter() - t0, interrupted)
+                _stop_local(pool, {f: i for f, i in futures.items() if i not in done}, done, cases)
+    rows, cut = _settle(done, cases) if interrupted else ([done[i] for i in sorted(done)], [])
+    return SweepResult(
+        path.stem, rows, len(cases), engine, time.perf_counter() - t0, interrupted, cut=cut
+    )
+
+
+def _row_of(fut: cf.Future[Row], case: Case) -> Row:
+    """A finished case's row (a worker that died is the row's error, not the case's)."""
+    try:
+        return fut.result()
+    except Exception as e:  # noqa: BLE001 — the worker died, not the case
+        error = f"{WORKER_ENDED}: {type(e).__name__}: {e}"
+        return Row(case.strategy, dict(case.settings), error=error, bag=case.bag)
 
 
 def _where(path: str, case: Case) -> str:
@@ -301,12 +346,77 @@ def _where(path: str, case: Case) -> str:
     return f"{path} with " + ", ".join(f"{k}={v}" for k, v in case.settings.items())
 
 
-def _stop_local(pool: cf.ProcessPoolExecutor) -> None:
-    """End the local workers now (their cases are lost; the finished rows are kept)."""
-    for p in list(getattr(pool, "_processes", {}).values()):
+def _stop_local(
+    pool: cf.ProcessPoolExecutor,
+    running: dict[cf.Future[Row], int],
+    done: dict[int, Row],
+    cases: Sequence[Case],
+) -> None:
+    """Stop the local workers: each is told to (SIGTERM, see :func:`_stop_case`), so the runs
+    in flight end where they are and close their bags, and ``done`` takes their rows; those
+    still running after :data:`STOP_WAIT` s (or at a second Ctrl-C) are ended outright."""
+    workers = [p for p in getattr(pool, "_processes", {}).values() if p.is_alive()]
+    for p in workers:
+        try:
+            os.kill(p.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    try:
+        for fut in cf.as_completed(running, timeout=STOP_WAIT):
+            if not fut.cancelled():
+                done[running[fut]] = _row_of(fut, cases[running[fut]])
+    except (cf.TimeoutError, KeyboardInterrupt):
+        pass  # ended outright below: their bags are seen to in _settle
+    for p in workers:
         if p.is_alive():
             p.kill()
     pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _settle(done: dict[int, Row], cases: Sequence[Case]) -> tuple[list[Row], list[str]]:
+    """After an interrupt: the rows of the runs that finished, and what became of the bag of
+    each recorded run that did not. A bag that holds the whole run is that run's row (its run
+    ended as the interrupt came); one cut short and closed is kept, readable; one its writer
+    could not close (its worker was ended outright) is removed, as is one without a step."""
+    from ..readback import bag_status
+
+    rows: list[Row] = []
+    cut: list[str] = []
+    for i, case in enumerate(cases):
+        row = done.get(i)
+        if row is not None and not _unfinished(row):
+            rows.append(row)
+            continue
+        if case.bag is None or not Path(case.bag).exists():
+            continue
+        status = bag_status(case.bag)
+        planned = _planned_steps(case.bag) if status.closed else None
+        if status.closed and status.steps == planned:
+            from .report import evaluate
+
+            ev = evaluate(case.bag)
+            rows.append(Row(case.strategy, dict(case.settings), ev.metrics, bag=case.bag))
+        elif status.closed:
+            cut.append(f"{case.bag}: cut at {status.steps} of {planned} steps, closed (readable)")
+        else:
+            shutil.rmtree(case.bag, ignore_errors=True)
+            why = "no whole step" if not status.readable else "its writer was ended outright"
+            cut.append(f"{case.bag}: removed ({why})")
+    return rows, cut
+
+
+def _unfinished(row: Row) -> bool:
+    """The row's run was stopped, never began, or its worker ended under it."""
+    return row.error in (INTERRUPTED, NOT_RUN) or (row.error or "").startswith(WORKER_ENDED)
+
+
+def _planned_steps(bag: str) -> int:
+    """The steps a recorded run was to have, from its stored scenario."""
+    from ..readback import read_bag
+    from ..recording import scenario_of
+
+    info = read_bag(bag)[1]
+    return scenario_of(info.info, info.path).run.steps
 
 
 # --- the table -------------------------------------------------------------------------------

@@ -88,7 +88,9 @@ def print_sweep(r: SweepResult) -> None:
     print(
         f"{runs} of {r.cases} runs in {r.wall_s:.1f} s on {r.engine} "
         f"({runs / r.wall_s:.2f} runs/s)"
-        + ("; interrupted: the rows above are kept" if r.interrupted else "")
+        + ("; interrupted: the rows above are kept, each a complete run" if r.interrupted else "")
     )
+    for what in r.cut:
+        print(f"not complete: {what}")
     for f in [*r.files, *r.figures]:
         print(f"wrote    {f}")
