@@ -344,6 +344,31 @@ def test_repair_of_a_bag_without_a_complete_step_leaves_it_as_it_was(short_bag, 
     assert f.read_bytes() == before and sorted(p.name for p in cut.iterdir()) == held
 
 
+def test_a_thd_window_without_a_whole_cycle_is_a_note_and_report_takes_other_windows(tmp_path):
+    """A THD window the run turns less than a cycle in: the run prints its metrics, THD "-" and
+    a note (was: a ValueError traceback after the run, and a bag `report` could never read);
+    `report --window A,B --thd-window A,B` evaluates the recording over others."""
+    bag = tmp_path / "bag"
+    r = cli("run", "im_short", "--engine", "inprocess", "--duration", "1", "--set",
+            "metrics_logger.thd_window=[0.1,0.102]", "--out", str(bag), "--json")  # fmt: skip
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    d = json.loads(r.stdout)
+    assert d["metrics"]["thd"] is None and d["metrics"]["t_rmse"] > 0
+    assert "no THD: THD window [0.1, 0.102) s holds no whole electrical cycle (0.0" \
+        in d["window_note"]  # fmt: skip
+    r = cli("report", str(bag), "--window", "0.4,1.0", "--thd-window", "0.4,1.0", "--json")
+    assert r.returncode == 0, r.stderr
+    m = json.loads(r.stdout)["metrics"]
+    assert (m["t_start"], m["t_end"], m["steps"]) == (0.4, 1.0, 12000)
+    assert m["thd"] > 0 and m["thd_cycles"] >= 1
+    for option, value, said in (
+        ("--window", "0.5,2", "--window 0.5,2: ends beyond the run (1 s)"),
+        ("--thd-window", "0.3,0.2", "--thd-window 0.3,0.2: need 0 <= A < B (s)"),
+    ):
+        r = cli("report", str(bag), option, value)
+        assert r.returncode == 2 and said in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
 def test_layout_to_a_path_that_cannot_be_written_is_an_error():
     r = cli("layout", "--out", "/proc/drive.foxglove.json")
     assert r.returncode == 2 and "Traceback" not in r.stderr

@@ -13,6 +13,7 @@ from ..core.machines import Machine
 from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
 from ..core.trace import Trace
+from ..errors import ConfigError
 from ..readback import BagInfo, read_bag
 from ..recording import StrategySpan, scenario_of, spans_from_json, strategy_spans
 
@@ -29,6 +30,7 @@ __all__ = [
     "report",
     "steps_of",
     "strategies_of",
+    "with_windows",
 ]
 
 
@@ -62,38 +64,70 @@ def metrics_window(sc: Scenario, recorded_s: float | None = None) -> tuple[float
 
 def metrics_of(trace: Trace, sc: Scenario) -> Metrics:
     """A run's metrics over its scenario's window, clipped to what the trace holds (and the THD
-    window, when the trace reaches its end)."""
-    start, end = metrics_window(sc, trace.steps * trace.ts)
-    thd = sc.logger.thd_window
-    if thd and thd[1] > trace.steps * trace.ts:
-        thd = ()  # a run (or a cut recording) that ends before the THD window: no THD
-    slips = sc.machine is Machine.INDUCTION
-    return compute_metrics(trace, t_start=start, t_end=end, thd_window=thd, slips=slips)
+    window, when the trace reaches its end and the window holds a whole electrical cycle)."""
+    return _evaluated(trace, sc)[0]
 
 
-def _window_note(trace: Trace, sc: Scenario) -> str:
-    """What differs from the scenario's windows because the recording ends early ('' if none)."""
+def _evaluated(trace: Trace, sc: Scenario) -> tuple[Metrics, str]:
+    """:func:`metrics_of`, and what differs from the scenario's windows because the recording
+    ends early or the THD window holds no whole cycle ('' if nothing)."""
     held = trace.steps * trace.ts
     lo = sc.logger
+    start, end = metrics_window(sc, held)
     notes = []
     if held < min(lo.window_end, sc.run.duration):
-        start, end = metrics_window(sc, held)
         notes.append(
             f"the recording ends at {held:g} s, inside or before the metrics window "
             f"{lo.window_start:g}-{lo.window_end:g} s: the metrics cover {start:g}-{end:g} s"
         )
-    if lo.thd_window and lo.thd_window[1] > held:
-        notes.append(
-            f"no THD: the THD window {lo.thd_window[0]:g}-{lo.thd_window[1]:g} s ends later"
-        )
-    return "; ".join(notes)
+    thd = lo.thd_window
+    if thd and thd[1] > held:  # a run (or a cut recording) that ends before the THD window
+        notes.append(f"no THD: the THD window {thd[0]:g}-{thd[1]:g} s ends later")
+        thd = ()
+    slips = sc.machine is Machine.INDUCTION
+    try:
+        m = compute_metrics(trace, t_start=start, t_end=end, thd_window=thd, slips=slips)
+    except ConfigError as e:  # the THD window's: the run turned too slowly in it
+        notes.append(f"no THD: {e} (`report --thd-window A,B` evaluates another)")
+        m = compute_metrics(trace, t_start=start, t_end=end, slips=slips)
+    return m, "; ".join(notes)
 
 
-def evaluate(bag: str | Path) -> Evaluation:
-    """Metrics of a recording over its scenario's window, from the recording alone."""
+def with_windows(
+    sc: Scenario,
+    *,
+    window: tuple[float, float] | None = None,
+    thd_window: tuple[float, float] | None = None,
+) -> Scenario:
+    """The scenario evaluated over another metrics ``window`` and/or THD window (s, [start,
+    end)), as ``report --window A,B --thd-window A,B`` asks; ConfigError names the option."""
+    for option, given in (("--window", window), ("--thd-window", thd_window)):
+        if given is None:
+            continue
+        a, b = given
+        if not (0 <= a < b):
+            raise ConfigError(f"{option} {a:g},{b:g}: need 0 <= A < B (s)")
+        if b > sc.run.duration:
+            raise ConfigError(f"{option} {a:g},{b:g}: ends beyond the run ({sc.run.duration:g} s)")
+    lo = sc.logger
+    if window is not None:
+        lo = dataclasses.replace(lo, window_start=window[0], window_end=window[1])
+    if thd_window is not None:
+        lo = dataclasses.replace(lo, thd_window=tuple(thd_window))
+    return dataclasses.replace(sc, logger=lo)
+
+
+def evaluate(
+    bag: str | Path,
+    *,
+    window: tuple[float, float] | None = None,
+    thd_window: tuple[float, float] | None = None,
+) -> Evaluation:
+    """Metrics of a recording over its scenario's window (or ``window``, and the THD over
+    ``thd_window``: see :func:`with_windows`), from the recording alone."""
     trace, info = read_bag(bag)
-    sc = scenario_of(info.info, info.path)
-    return Evaluation(trace, info, sc, metrics_of(trace, sc), _window_note(trace, sc))
+    sc = with_windows(scenario_of(info.info, info.path), window=window, thd_window=thd_window)
+    return Evaluation(trace, info, sc, *_evaluated(trace, sc))
 
 
 @dataclass(frozen=True)
@@ -193,11 +227,18 @@ class Report:
         return out
 
 
-def report(bag: str | Path, *, figures: str | Path | None = None) -> Report:
+def report(
+    bag: str | Path,
+    *,
+    figures: str | Path | None = None,
+    window: tuple[float, float] | None = None,
+    thd_window: tuple[float, float] | None = None,
+) -> Report:
     """Metrics of a recording, from the recording alone; for a PMSM, per load step also the
     measured current angle and amplitude it settled to (the MTPA view). ``figures``: a folder to
-    draw the paper-style figures into (PNG)."""
-    ev = evaluate(bag)
+    draw the paper-style figures into (PNG); ``window``, ``thd_window``: evaluate over these
+    instead of the recorded scenario's (s, [start, end))."""
+    ev = evaluate(bag, window=window, thd_window=thd_window)
     drawn: list[Path] = []
     if figures is not None:
         from ..reports.figures import Run, run_figures, save

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ConfigError
 from .signals import COMMAND_INDEX, REFERENCE_INDEX, STATE_INDEX, strategy_name
 from .timebase import every_steps, step_index
 from .trace import Trace
@@ -218,8 +219,15 @@ def phase_a_spectrum(
     in [t_start, t_end): the cycles are counted on the unwrapped angle of the fundamental, so the
     window holds an integer number of its periods (no leakage at steady speed). That angle is the
     rotor's electrical angle θ_e for a synchronous machine; an induction motor's currents turn
-    faster or slower than its rotor by the slip (``slips``), so there it is the stator flux's."""
-    k0, k1 = step_window(trace, t_start, t_end)
+    faster or slower than its rotor by the slip (``slips``), so there it is the stator flux's.
+    ConfigError when the window holds no step or no whole cycle of the run."""
+    try:
+        k0, k1 = step_window(trace, t_start, t_end)
+    except ValueError:
+        raise ConfigError(
+            f"THD window [{t_start}, {t_end}) s holds no step of this run ({trace.steps} steps "
+            f"of {trace.ts} s)"
+        ) from None
     if slips:
         psi = trace.col("state", "psi_alpha") + 1j * trace.col("state", "psi_beta")
         theta = np.unwrap(np.angle(psi[k0 : k1 + 1]))
@@ -228,7 +236,7 @@ def phase_a_spectrum(
     turned = np.abs(theta - theta[0])
     cycles = int(turned[-1] // (2.0 * math.pi))
     if cycles < 1:
-        raise ValueError(
+        raise ConfigError(
             f"THD window [{t_start}, {t_end}) s holds no whole electrical cycle "
             f"({turned[-1] / (2 * math.pi):.2f} turns)"
         )
@@ -248,7 +256,8 @@ def compute_metrics(
     slips: bool = False,
 ) -> Metrics:
     """A run's figures over [t_start, t_end); the THD over ``thd_window`` (``slips``: an
-    induction motor's, see :func:`phase_a_spectrum`)."""
+    induction motor's, see :func:`phase_a_spectrum`; ConfigError if that window holds no whole
+    electrical cycle)."""
     k0, k1 = step_window(trace, t_start, t_end)
     n = k1 - k0
     te = trace.col("state", "torque")[k0:k1]
