@@ -119,3 +119,25 @@ def test_a_parameter_outside_its_range_is_refused_when_declared(tmp_path):
             PlantNode(context=ctx)
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_a_stop_ends_the_wait_for_subscribers_at_once(node_in):
+    """SIGINT / SIGTERM (STOP) while a node waits for the readers of its first message: the wait
+    ends at once (was: the whole start-up timeout, 60 s, polled without looking at a stop)."""
+    import threading
+    import time
+
+    from predictive_drive.ros.node_base import STOP
+    from predictive_drive.ros.speed_pi_node import SpeedPINode
+
+    node = node_in(SpeedPINode, "im_short")
+    assert node.startup_timeout == 60.0
+    stopper = threading.Timer(0.5, STOP.set)
+    stopper.start()
+    try:
+        t0 = time.monotonic()
+        node.wait_matched(node.pub_ref, 5, "five readers that never come")
+        assert time.monotonic() - t0 < 30.0  # a bound on a hang, not a measurement
+    finally:
+        stopper.cancel()
+        STOP.clear()

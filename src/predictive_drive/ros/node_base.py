@@ -258,9 +258,10 @@ class DriveNode(Node):
 
     def wait_matched(self, pub: Any, count: int, what: str) -> None:
         """Block (briefly, in a callback is fine: matching runs in DDS threads) until ``pub`` has
-        ``count`` matched subscriptions, or fail after startup_timeout."""
+        ``count`` matched subscriptions, or fail after startup_timeout; a stop (SIGINT, SIGTERM:
+        :data:`STOP`) ends the wait at once, the node then closing as it would anywhere."""
         deadline = time.monotonic() + self.startup_timeout
-        while pub.get_subscription_count() < count:
+        while pub.get_subscription_count() < count and not STOP.is_set():
             if time.monotonic() > deadline:
                 raise GraphError(
                     f"{self.get_fully_qualified_name()}: {pub.topic_name} has "
