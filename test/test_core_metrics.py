@@ -52,6 +52,28 @@ def test_metrics_on_known_signals():
     assert m.compute_ns_median == 1000.0
 
 
+def test_what_a_controller_does_not_report_reads_dash():
+    """A controller of one's own that publishes its switching alone (strategy, vector, t_u,
+    cal, compute_ns all NaN: not reported): the figures made of them are NaN, shown "-" with no
+    unit (was: deadbeat "0.00 %", compute "nan µs", utilization all 0); one that reports a
+    deadbeat time keeps its deadbeat share."""
+    from predictive_drive.core.metrics import METRICS
+
+    tr = synthetic_trace()
+    f = Command._fields.index
+    for name in ("strategy", "vector", "t_u", "cal", "compute_ns"):
+        tr.command[:, f(name)] = np.nan
+    m = compute_metrics(tr)
+    assert math.isnan(m.cal_ave) and math.isnan(m.deadbeat_share)
+    assert math.isnan(m.compute_ns_median) and all(math.isnan(u) for u in m.utilization)
+    assert m.t_rmse == pytest.approx(0.3, rel=1e-12)  # what the plant measured is all there
+    for key in ("deadbeat_share", "cal_ave", "compute_ns_median", "vector_agreement"):
+        assert METRICS[key].with_unit(math.nan) == "-"
+    assert METRICS["deadbeat_share"].with_unit(0.0) == "0.00 %"
+    tr.command[:, f("t_u")] = np.where(np.arange(1000) % 4 == 0, 0.5 * TS, np.nan)
+    assert compute_metrics(tr).deadbeat_share == pytest.approx(0.25)
+
+
 def test_metrics_window_selects_steps():
     m = compute_metrics(synthetic_trace(), t_start=0.05, t_end=0.08)
     assert (m.steps, m.t_start, m.t_end) == (300, pytest.approx(0.05), pytest.approx(0.08))

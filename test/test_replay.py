@@ -4,6 +4,7 @@ subscriber in order and byte for byte; and a recording fed step by step into a c
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -163,7 +164,11 @@ def test_replay_into_the_strategy_that_made_it_reproduces_every_command(
     rec = tmp_path / "rec"
     run_inprocess_to_bag(load_scenario(scenario, strategy=strategy, duration=0.03), rec)
     d = replay_into(rec, out=tmp_path / "again")
-    assert (d.vector_agreement, d.pulse_agreement) == (1.0, 1.0)
+    assert d.pulse_agreement == 1.0
+    if strategy.startswith("foc"):  # field-oriented control picks no vector: nothing to agree on
+        assert math.isnan(d.vector_agreement)
+    else:
+        assert d.vector_agreement == 1.0
     a, _ = read_bag(rec)
     b, info = read_bag(tmp_path / "again")
     assert info.info["engine"] == "replay" and info.info["replay_of"] == str(rec.resolve())

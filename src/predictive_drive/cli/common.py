@@ -130,8 +130,7 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
     rows = [(METRICS[k], getattr(m, k)) for k in SHOWN]
     rows.append((METRICS["compute_ns_median"], m.compute_ns_median))
     for shown, value in rows:
-        text = f"{shown.format(value)} {shown.unit}".rstrip()
-        print(f"  {shown.title:<11}{text:>16}   {shown.description}")
+        print(f"  {shown.title:<11}{shown.with_unit(value):>16}   {shown.description}")
     if m.thd == m.thd:  # NaN: no THD window
         shown = METRICS["thd"]
         harmonics = METRICS["thd_harmonics"].format(m.thd_harmonics)
@@ -140,7 +139,7 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
             f"{m.thd_cycles} cycles of {m.thd_fundamental_hz:.1f} Hz (harmonics alone "
             f"{harmonics} %)"
         )
-    if any(m.utilization):
+    if all(math.isfinite(u) for u in m.utilization) and any(m.utilization):
         util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m.utilization))
         print(f"  {'vectors':<11}{util}")
     d = r.details

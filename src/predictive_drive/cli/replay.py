@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from ..api.replay import replay, replay_into
+from ..core.metrics import METRICS
 from .common import refuse, say_json
 
 HELP = (
@@ -108,8 +109,10 @@ def _into(a: argparse.Namespace) -> int:
         f"replayed {a.bag} into the torque controller ({d.strategy}): {d.steps} steps at "
         f"{d.steps_per_s:,.0f} steps/s; new bag {d.bag}"
     )
+    vector, pulses = METRICS["vector_agreement"], METRICS["pulse_agreement"]
     print(
-        f"  agreement with the recorded commands: vector {100 * d.vector_agreement:.2f} %, "
-        f"pulses {100 * d.pulse_agreement:.2f} %; compute {d.compute_us_per_step:.2f} µs/step"
+        f"  agreement with the recorded commands: vector {vector.with_unit(d.vector_agreement)}, "
+        f"pulses {pulses.with_unit(d.pulse_agreement)}; compute "
+        f"{METRICS['compute_us_per_step'].with_unit(d.compute_us_per_step)}"
     )
     return 0

@@ -54,6 +54,11 @@ class Metric:
         shown = value * self.scale
         return format(round(shown) if self.fmt.endswith("d") else shown, self.fmt)
 
+    def with_unit(self, value: float | None) -> str:
+        """:meth:`format` followed by the unit, or '-' alone where there is no value."""
+        text = self.format(value)
+        return f"{text} {self.unit}".rstrip() if text != "-" else text
+
     @property
     def heading(self) -> str:
         """Title and unit, for a table's head: ``T_RMSE N·m``."""
@@ -90,8 +95,10 @@ class Metrics:
     two transitions per leg change. f_sw_hz: device turn-on events per device per second (one per
     leg change, half f_ave): the carrier frequency of a PWM drive. cal_ave: mean predictions
     per step. utilization: share of steps choosing V0..V6 (steps of a field-oriented law pick no
-    vector and count for none).
-    deadbeat_share: share of steps with 0 < t_u < Ts. compute_ns_*: control law only.
+    vector and count for none; NaN when no step of the window picked one).
+    deadbeat_share: share of steps with 0 < t_u < Ts (NaN when no step picked a vector or
+    reported a t_u). compute_ns_*: control law only (NaN where the controller did not report it).
+    A figure a controller cannot have is NaN, shown "-".
     speed_rmse: ω_m against ω_m*, rad/s. thd: phase-a current distortion over ``thd_cycles`` whole
     electrical cycles of the THD window — every spectral line up to Nyquist but DC and the
     fundamental (at ``thd_fundamental_hz``) — and thd_harmonics the integer harmonics alone (see
@@ -151,7 +158,8 @@ class Metrics:
 
 
 #: how each figure of a run is shown: the :class:`Metrics` fields, and the figures derived from
-#: a run elsewhere (a paper table's zero-vector share, the compute times of a controller replay)
+#: a run elsewhere (a paper table's zero-vector share, the compute times of a controller replay,
+#: a replay's agreement with the recording)
 METRICS: dict[str, Metric] = {
     **{f.name: f.metadata[_KEY] for f in dataclasses.fields(Metrics)},
     "zero_share": Metric("V0", "%", 100.0, ".1f", "share of steps choosing the zero vector"),
@@ -161,6 +169,12 @@ METRICS: dict[str, Metric] = {
     ),
     "compute_ns_hot": Metric(
         "compute", "µs/step", 1e-3, ".2f", "decision time per step in a tight replay loop"
+    ),
+    "vector_agreement": Metric(
+        "vector", "%", 100.0, ".2f", "replayed steps whose new command picks the recorded vector"
+    ),
+    "pulse_agreement": Metric(
+        "pulses", "%", 100.0, ".2f", "replayed steps whose new command has the recorded pulses"
     ),
 }
 
@@ -274,6 +288,10 @@ def compute_metrics(
     strat = trace.col("command", "strategy")[k0:k1]
     with np.errstate(invalid="ignore"):
         deadbeat = np.count_nonzero((t_u > 0.0) & (t_u < trace.ts))
+    # a law that picks no vector (field-oriented control, a controller of one's own that does
+    # not say) has no utilization, and no deadbeat share unless it reports deadbeat times
+    chose = bool(fcs.any())
+    has_t_u = chose or bool(np.isfinite(t_u).any())
     by_strategy = {}
     for s in np.unique(strat):  # NaN (a controller of the user's own) once, as one strategy
         steps = np.isnan(strat) if np.isnan(s) else strat == s
@@ -287,8 +305,12 @@ def compute_metrics(
         f_ave_hz=float(transitions / (6.0 * n * trace.ts)),
         f_sw_hz=float(transitions / (12.0 * n * trace.ts)),
         cal_ave=float(trace.col("command", "cal")[k0:k1].mean()),
-        utilization=tuple(float(x) for x in np.bincount(vec[fcs].astype(int), minlength=7)[:7] / n),
-        deadbeat_share=deadbeat / n,
+        utilization=(
+            tuple(float(x) for x in np.bincount(vec[fcs].astype(int), minlength=7)[:7] / n)
+            if chose
+            else (math.nan,) * 7
+        ),
+        deadbeat_share=deadbeat / n if has_t_u else math.nan,
         compute_ns_mean=float(ns.mean()),
         compute_ns_median=float(np.median(ns)),
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),

@@ -14,12 +14,15 @@ differ — read its agreement as "what it would have decided here", not as a clo
 
 from __future__ import annotations
 
+import math
 import shlex
 import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, decode_command, stamp_ns
@@ -184,17 +187,20 @@ def replay_into(
     shm.clean()
     rec = trace.command
     v = COMMAND_INDEX.vector
-    # the same vector, or no vector in either (field-oriented control: NaN)
+    # the same vector, or no vector in either (field-oriented control: NaN); no agreement at all
+    # where no recorded step picked a vector (nothing to agree with: NaN, shown "-")
     same_vector = [c[v] == r[v] or (c[v] != c[v] and r[v] != r[v]) for c, r in zip(commands, rec)]
+    picked = bool(np.isfinite(rec[:, v]).any())
     same_pulses = [tuple(c[PULSES]) == tuple(r[PULSES]) for c, r in zip(commands, rec)]
-    compute = sorted(c[COMMAND_INDEX.compute_ns] for c in commands)
+    # the median step's; a controller of one's own may not say (NaN)
+    reported = sorted(t for c in commands if math.isfinite(t := c[COMMAND_INDEX.compute_ns]))
     return StepResult(
         bag=out,
         steps=n,
         strategy=EXTERNAL if command is not None else strategy or "as recorded",
-        vector_agreement=sum(same_vector) / n,
+        vector_agreement=sum(same_vector) / n if picked else math.nan,
         pulse_agreement=sum(same_pulses) / n,
-        compute_us_per_step=compute[len(compute) // 2] / 1e3,
+        compute_us_per_step=reported[len(reported) // 2] / 1e3 if reported else math.nan,
         steps_per_s=n / wall,
     )
 
