@@ -1,13 +1,15 @@
 """A torque controller node of one's own that misbehaves at one step, for the tests of what the
 graph does then (test_external.py): ``bad_controller.py MODE STEP --ros-args ...``. Until STEP it
 answers every state with V1 for the whole period (s_a, s_b, s_c = 1, 0, 0); at STEP it does what
-MODE says (``slow_start``: command 0 comes 4 s late, then all is well). rclpy and std_msgs only,
-as a user's node."""
+MODE says (``slow_start``: command 0 comes 4 s late, then all is well; ``no_exit``: all is well,
+but it does not exit after the last command, and ``stubborn`` besides ignores SIGTERM).
+rclpy and std_msgs only, as a user's node."""
 
 from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
 import time
 
@@ -32,13 +34,20 @@ MODES = {
     "nan_duty": lambda k, t: (PULSES, (k, t, 0.0, 0.0, 0.0, math.nan, 0.0, 0.0)),
     "pulse_past_period": lambda k, t: (PULSES, (k, t, 0.6, 0.0, 0.0, 0.5, 0.0, 0.0)),
     "voltage_inf": lambda k, t: (("k", "t", "u_alpha", "u_beta"), (k, t, math.inf, 0.0)),
+    "switching_state_nan": lambda k, t: (SWITCHING, (k, t, 1.0, math.nan, 0.0)),
+    "wrong_time": lambda k, t: (SWITCHING, (k, t + 5e-5, 1.0, 0.0, 0.0)),
+    "wrong_size": lambda k, t: (SWITCHING, (k, t, 1.0, 0.0)),  # five labels, four values
+    "no_layout": lambda k, t: ((), (k, t, 1.0, 0.0, 0.0)),
 }
+#: MODE → what it does at STEP besides: a burst of commands for the steps after it
+BURSTS = {"future_commands": 1000}
 
 
 def message(labels: tuple[str, ...], values: tuple[float, ...]) -> Float64MultiArray:
     msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=",".join(labels), size=len(labels),
-                                          stride=len(labels))]  # fmt: skip
+    if labels:  # none: no layout at all
+        msg.layout.dim = [MultiArrayDimension(label=",".join(labels), size=len(labels),
+                                              stride=len(labels))]  # fmt: skip
     msg.data = [float(v) for v in values]
     return msg
 
@@ -52,7 +61,10 @@ class BadController(Node):
         )
         self.mode, self.at = mode, at
         ts, duration = (float(self.get_parameter(n).value) for n in ("ts", "duration"))
+        self.ts = ts
         self.steps = round(duration / ts)  #: after the last command it ends, as the contract says
+        readers = self.get_parameter_or("command_readers", None).value
+        self.readers = 2 if readers is None else int(readers)
         self.done = False
         self.pub = self.create_publisher(Float64MultiArray, "command", LOCKSTEP)
         self.refs: set[int] = set()
@@ -74,7 +86,7 @@ class BadController(Node):
         if k not in self.states or k not in self.refs:
             return
         if k == 0:
-            while self.pub.get_subscription_count() < 2:
+            while self.pub.get_subscription_count() < self.readers:
                 time.sleep(0.005)
             if self.mode == "slow_start":  # as a node still loading or discovering would
                 time.sleep(4.0)
@@ -85,7 +97,17 @@ class BadController(Node):
             if self.mode == "silent":
                 self.k = -1  # never answers again
                 return
-            self.pub.publish(message(*MODES[self.mode](float(k), t)))
+            if self.mode == "exit0":  # as a node that believes the run is over
+                raise SystemExit(0)
+            if self.mode in BURSTS:  # the commands of the steps to come, all at once
+                for j in range(k + 1, k + 1 + BURSTS[self.mode]):
+                    self.pub.publish(message(SWITCHING, (j, j * self.ts, 1.0, 0.0, 0.0)))
+                self.k = -1
+                return
+            if self.mode in MODES:
+                self.pub.publish(message(*MODES[self.mode](float(k), t)))
+            else:
+                self.pub.publish(message(SWITCHING, (k, t, 1.0, 0.0, 0.0)))
         else:
             self.pub.publish(message(SWITCHING, (k, t, 1.0, 0.0, 0.0)))
         self.k = k + 1
@@ -95,11 +117,17 @@ class BadController(Node):
 def main() -> int:
     mode, at = sys.argv[1], int(sys.argv[2])
     rclpy.init(args=sys.argv)
+    if mode == "stubborn":  # after rclpy's own handlers are in
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
     node = BadController(mode, at)
     try:
         while rclpy.ok() and not node.done:
             rclpy.spin_once(node, timeout_sec=0.1)
         node.pub.wait_for_all_acked()
+        # the run is over; it stays all the same, until SIGTERM (rclpy's handler shuts the
+        # context down) or, stubborn, for good
+        while mode == "stubborn" or (mode == "no_exit" and rclpy.ok()):
+            time.sleep(0.1)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     return 0

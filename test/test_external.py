@@ -25,8 +25,9 @@ from predictive_drive.api.run import run, run_inprocess_to_bag
 from predictive_drive.codec import labelled
 from predictive_drive.config import load_scenario
 from predictive_drive.core.signals import EXTERNAL
+from predictive_drive.errors import ConfigError
 from predictive_drive.readback import read_bag
-from procs import end_all, ended, wait_until
+from procs import bag_bytes, end_all, ended, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dtc_im"
@@ -85,6 +86,75 @@ def test_the_example_dtc_runs_as_the_torque_controller(dtc_run):
 
 
 @pytest.mark.process
+def test_your_controllers_parameters_and_name_are_yours_and_recorded(tmp_path):
+    """--set torque_controller.KEY=VALUE reaches your node (a key no built-in family has
+    included, unchecked) and goes into the bag's metadata with the command line; --label names
+    the controller external:NAME in the bag, its spans, report and compare, so two of yours
+    compare by name."""
+    runs = {}
+    for label, band in (("dtc_a", 0.05), ("dtc_b", 0.2)):
+        runs[label] = run(
+            "im_short", engine="ros", duration=0.05, out=tmp_path / label, label=label,
+            external={"torque_controller": DTC},
+            settings={"torque_controller.torque_band": band, "torque_controller.gain": 3},
+        )  # fmt: skip
+    r = runs["dtc_b"]
+    assert r.strategy == "external:dtc_b"
+    assert [(s.strategy, s.first, s.last) for s in r.details.strategies] == [
+        ("external:dtc_b", 0, r.steps - 1)
+    ]
+    (node,) = r.details.own_nodes
+    assert (node.name, node.command) == ("torque_controller", DTC)
+    assert node.parameters["torque_band"] == 0.2 and node.parameters["gain"] == 3
+    assert node.parameters["motor.r_s"] == load_scenario("im_short").controller.motor.r_s
+    said = (r.bag / "logs" / "torque_controller.log").read_text()
+    assert "torque band 0.2 N·m" in said, said  # the node got it as a parameter
+    trace, info = read_bag(r.bag)
+    assert info.info["strategy"] == "external:dtc_b" and trace.external == "external:dtc_b"
+    rep = subprocess.run([*CLI, "report", str(r.bag)], capture_output=True, text=True, timeout=60)
+    assert f"your node  torque_controller: started as `{DTC}`; parameters: " in rep.stdout
+    assert "torque_band=0.2" in rep.stdout and "gain=3" in rep.stdout, rep.stdout
+    d = compare([str(runs["dtc_a"].bag), str(r.bag)])
+    assert [c.label for c in d.runs] == ["im_short external:dtc_a", "im_short external:dtc_b"]
+    assert d.runs[0].metrics.t_rmse != d.runs[1].metrics.t_rmse  # the bands differ
+
+
+@pytest.mark.core
+def test_a_label_a_folder_cannot_hold_is_refused_and_default_folders_hold_no_colon(tmp_path):
+    from predictive_drive.recording import default_bag_dir
+
+    for bad in ("a:b", "my ctrl", "x/y", ""):
+        with pytest.raises(ConfigError, match=r"--label .*letters, digits and _ \. \+ -"):
+            run("im_short", label=bad, external={"torque_controller": "true"}, out=tmp_path / "x")
+    with pytest.raises(ConfigError, match="--label dtc: names a torque controller of your own"):
+        run("im_short", label="dtc", out=tmp_path / "x")
+    assert not (tmp_path / "x").exists()
+    sc = load_scenario("im_short", strategy="external:dtc")
+    folder = default_bag_dir(sc).name
+    assert folder.startswith("im_short_external-dtc_") and ":" not in folder
+
+
+@pytest.mark.core
+def test_your_section_takes_any_key_and_ours_are_checked():
+    """The section of a node of your own is yours: --set adds any key and the scenario loads
+    without checking it; the same key on one of ours is refused, naming the keys it has."""
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path("im_short")
+    text = path.read_text()
+    mine = apply_settings(text, {"torque_controller.gain": 3, "torque_controller.pid.kp": 0.5},
+                          path, own=["torque_controller"])  # fmt: skip
+    sc = load_scenario_text(mine, path, own=["torque_controller"])
+    assert sc.external and sc.controller is None and sc.family == "mptc_im"
+    with pytest.raises(ConfigError, match="has no key 'gain' here; keys: "):
+        apply_settings(text, {"torque_controller.gain": 3}, path)
+    with pytest.raises(ConfigError, match="unknown key 'gain'"):
+        load_scenario_text(mine, path)
+    speed = apply_settings(text, {"speed_pi.my_gain": 1.5}, path, own=["speed_pi"])
+    assert load_scenario_text(speed, path, own=["speed_pi"]).speed_pi is None
+
+
+@pytest.mark.process
 def test_compare_puts_the_example_beside_db_mptc(dtc_run, tmp_path):
     sc = load_scenario("im_short", strategy="db_mptc")
     db = tmp_path / "db_mptc"
@@ -140,27 +210,173 @@ BAD_CASES = [
     ("nan_duty", "field 'duty_a' = nan: a fraction of Ts must lie in [0, 1]"),
     ("pulse_past_period", "field 'duty_a' = 0.5: delay_a + duty_a = 1.1 exceeds the period (1)"),
     ("voltage_inf", "field 'u_alpha' = inf: a voltage reference must be a finite number of volts"),
+    (
+        "wrong_time",
+        "field 't' = 0.00505: a command carries the time of the state it answers "
+        "(state 100: t = 0.005 s)",
+    ),  # fmt: skip
+    # malformed (the recorder leaves them out and keeps every valid step)
+    (
+        "wrong_size",
+        "Float64MultiArray layout: 4 values under the labels 'k,t,s_a,s_b,s_c' "
+        "(expected one distinct label per value)",
+    ),  # fmt: skip
+    (
+        "future_commands",
+        "field 'k' = 101: the command for another step (the plant waits for step 100)",
+    ),  # fmt: skip
 ]
 
 
 @pytest.mark.process
 @pytest.mark.parametrize("mode,message", BAD_CASES, ids=[m for m, _ in BAD_CASES])
 def test_a_bad_command_ends_the_run_naming_field_and_step(mode, message, tmp_path):
+    """The headline is the plant's refusal (was: "node plant failed first: exit 1"); the bag's
+    outcome says it too; the bag keeps every step before the bad one, and the outcome, the
+    strategy spans and report count the same steps (was: 101 and a span of step 100, which
+    the plant never applied)."""
     out = tmp_path / mode
     r = subprocess.run(
         [*CLI, "run", "im_short", "--duration", "0.02", "--out", str(out),
          "--external", f"torque_controller={BAD} {mode} 100"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
-    assert r.returncode == 2, r.stderr  # GraphError: the run failed
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr  # GraphError
     said = (
         "/drive/plant: refused /drive/command from /drive/torque_controller: step 100: " + message
     )
-    assert said in r.stderr, r.stderr
-    assert "node plant" in r.stderr and "failed first" in r.stderr
-    trace, _ = read_bag(out)  # closed, readable: every step before the bad one
+    headline = next(line for line in r.stderr.splitlines() if "error:" in line)
+    assert headline.startswith(f"predictive-drive: error: {said}"), r.stderr
+    assert re.search(r"; the run was stopped \(plant, pid \d+, exited with status 1\)$", headline)
+    trace, info = read_bag(out)  # closed, readable: every step before the bad one
     assert trace.command.shape[0] == 100
     assert list(trace.state[:, 0]) == list(range(101))
+    outcome = info.custom["outcome"]
+    assert outcome.startswith(f"ERROR: {said}") and ": 100 of 400 steps" in outcome, outcome
+    assert json.loads(info.custom["strategies"]) == [{"strategy": EXTERNAL, "first": 0, "last": 99}]
+    rep = subprocess.run([*CLI, "report", str(out)], capture_output=True, text=True, timeout=120)
+    assert "the run stopped early: 100 of 400 planned steps recorded" in rep.stdout, rep.stdout
+
+
+COMMANDS = [
+    ("nosuch-controller-xyz --fast", "'nosuch-controller-xyz' is not found on PATH"),
+    ("/nonexistent/ctrl", "'/nonexistent/ctrl' does not exist"),
+    ("python3 'examples/dtc_im", "does not parse as a command line (no closing quotation)"),
+    (str(ROOT / "README.md"), "is not executable (chmod +x it, or start it with its interpreter)"),
+]
+
+
+@pytest.mark.core
+@pytest.mark.parametrize("command,why", COMMANDS, ids=["missing", "no-file", "quote", "not-exec"])
+def test_a_command_that_cannot_start_is_refused_before_anything_starts(command, why, tmp_path):
+    """A typo in COMMAND: exit 2 naming the command and why, no traceback, nothing started and
+    --out untouched (was: the node's start failed as a process, blamed after the graph came up,
+    or a traceback for the quote), for run and for replay --into alike."""
+    out = tmp_path / "out"
+    r = subprocess.run(
+        [*CLI, "run", "im_short", "--out", str(out), "--external", f"torque_controller={command}"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"--external torque_controller={command}: " in r.stderr and why in r.stderr, r.stderr
+    assert "graph on ROS_DOMAIN_ID" not in r.stderr and not out.exists()
+    bag = tmp_path / "bag"
+    run_inprocess_to_bag(load_scenario("im_short", duration=0.01), bag)
+    r = subprocess.run(
+        [*CLI, "replay", str(bag), "--into", f"torque_controller={command}", "--out", str(out)],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"--into torque_controller={command}: " in r.stderr and why in r.stderr, r.stderr
+    assert not out.exists()
+
+
+NEVER = [
+    ("true", [], r"error: your torque_controller \(pid \d+\) exited with status 0 at step 0, "
+     r"before its last command \(step 399\); the run was stopped"),
+    (f"{BAD} exit0 100", [], r"error: your torque_controller \(pid \d+\) exited with status 0 at "
+     r"step 100, before its last command \(step 399\); the run was stopped"),
+    (f"{BAD} silent 0", ["--startup-timeout", "3"], r"error: /drive/plant: no /drive/command for "
+     r"step 0 from /drive/torque_controller within 3.0 s; the run was stopped \(plant, pid \d+"),
+    (None, ["--startup-timeout", "3"], r"error: /drive/plant: step 0 still waits for "
+     r"/drive/torque_controller \(no /drive/state subscription, no /drive/command publisher\) "
+     r"within 3.0 s; the run was stopped"),
+]  # fmt: skip
+
+
+@pytest.mark.process
+@pytest.mark.parametrize(
+    "command,options,said", NEVER, ids=["exits-at-once", "exits-at-100", "hangs", "by-hand-never"]
+)
+def test_a_controller_that_does_not_answer_is_named_at_once(command, options, said, tmp_path):
+    """A controller that exits 0 before its last command, never sends command 0, or (started by
+    hand) never starts: the error names torque_controller and /drive/command, at once or at the
+    start-up limit — never speed_pi or the recorder, which waited on the plant (was: the speed PI
+    or the recorder blamed after 60 s; an exit 0 went unnoticed until the peer timeout)."""
+    out = tmp_path / "out"
+    external = "torque_controller" if command is None else f"torque_controller={command}"
+    r = subprocess.run(
+        [*CLI, "run", "im_short", "--duration", "0.02", "--out", str(out), *options,
+         "--external", external],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    headline = next(line for line in r.stderr.splitlines() if "error:" in line)
+    assert re.search(said, headline), r.stderr
+    assert "speed_pi" not in headline and "metrics_logger" not in headline
+    if command is None:  # the wait says its limit and the option that changes it
+        assert "waiting for your /drive/torque_controller (up to 3 s; --startup-timeout S " \
+            "changes it)" in r.stderr  # fmt: skip
+
+
+@pytest.mark.process
+@pytest.mark.parametrize("mode", ["no_exit", "stubborn"])
+def test_a_controller_that_does_not_exit_after_its_last_command_is_ended(mode, tmp_path):
+    """The run completes and prints its metrics; the node that stays is ended, and the run says
+    so: SIGTERM 5 s after the last step, SIGKILL 5 s later for one that ignores it (was: the
+    launcher waited for it for ever)."""
+    r = subprocess.run(
+        [*CLI, "run", "im_short", "--duration", "0.02", "--out", str(tmp_path / "out"),
+         "--external", f"torque_controller={BAD} {mode} 0"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert "steps 400" in r.stdout and "outcome    OK: complete: 400 steps" in r.stdout, r.stdout
+    pid = re.search(r"torque_controller pid (\d+)", r.stderr).group(1)
+    term = f"your torque_controller (pid {pid}) has not exited 5 s after the run's last step: " \
+        "ending it (SIGTERM)"  # fmt: skip
+    assert term in r.stderr, r.stderr
+    assert ("it ignored SIGTERM: killing it (SIGKILL)" in r.stderr) == (mode == "stubborn")
+    assert ended(int(pid))
+
+
+REPLAYED = [
+    ("switching_state_nan", "error: /drive/stepper: refused /drive/command from "
+     "/drive/torque_controller: step 100: field 's_b' = nan: a switching state is 0 (low) or 1 "
+     "(high) (as the plant would); the new bag"),
+    ("silent", "error: no /drive/command for step 100 from /drive/torque_controller within 10 s: "
+     "it runs (pid"),
+]  # fmt: skip
+
+
+@pytest.mark.process
+@pytest.mark.parametrize("mode,said", REPLAYED, ids=[m for m, _ in REPLAYED])
+def test_replay_into_a_controller_refuses_what_the_plant_refuses(mode, said, tmp_path):
+    """replay --into a node that sends what the plant would refuse, or never answers: exit 2
+    with the field and the step, or the silent step (was: a NaN switching state recorded with
+    exit 0; "replay into the torque controller: step 0 within 10.0 s"); the new bag keeps the
+    steps before it."""
+    bag = tmp_path / "bag"
+    run_inprocess_to_bag(load_scenario("im_short", duration=0.02), bag)
+    out = tmp_path / "again"
+    r = subprocess.run(
+        [*CLI, "replay", str(bag), "--into", f"torque_controller={BAD} {mode} 100", "--out",
+         str(out)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert said in r.stderr, r.stderr
+    assert read_bag(out)[0].steps == 100
 
 
 def _run_bad(mode: str, out: Path) -> subprocess.CompletedProcess[str]:
@@ -175,8 +391,8 @@ def _run_bad(mode: str, out: Path) -> subprocess.CompletedProcess[str]:
 def test_a_controller_that_stops_answering_is_named_by_the_plant(tmp_path):
     r = _run_bad("silent", tmp_path / "silent")
     assert r.returncode == 2, r.stderr
-    assert "no /drive/command for step 100 from /drive/torque_controller" in r.stderr, r.stderr
-    assert "node plant" in r.stderr and "failed first" in r.stderr
+    assert "predictive-drive: error: /drive/plant: no /drive/command for step 100 from " \
+        "/drive/torque_controller within 2.0 s; the run was stopped (plant, pid" in r.stderr  # fmt: skip
     trace, _ = read_bag(tmp_path / "silent")
     assert list(trace.state[:, 0]) == list(range(101)) and trace.command.shape[0] == 100
 
@@ -202,8 +418,8 @@ def test_a_controller_that_dies_is_named_and_the_bag_closes(tmp_path):
     out = tmp_path / "dies"
     r = _run_bad("dies", out)
     assert r.returncode == 2, r.stderr
-    assert re.search(r"node torque_controller \(pid \d+\) failed first: it exited with status 3",
-                     r.stderr), r.stderr  # fmt: skip
+    assert re.search(r"error: node torque_controller \(pid \d+\) exited with status 3; the run "
+                     r"was stopped", r.stderr), r.stderr  # fmt: skip
     with open(next(out.glob("*.mcap")), "rb") as f:  # closed: summary and footer are there
         reader = make_reader(f)
         assert reader.get_summary() is not None
@@ -282,20 +498,25 @@ def test_the_speed_loop_started_as_an_external_command_gives_the_same_run(tmp_pa
 
 
 @pytest.mark.process
-def test_a_users_node_ends_when_the_launcher_is_killed_outright(tmp_path):
+@pytest.mark.parametrize("command", [DTC, f"{BAD} stubborn 9999999"], ids=["dtc", "stubborn"])
+def test_a_users_node_ends_when_the_launcher_is_killed_outright(command, tmp_path):
     """Our nodes watch their launcher; a user's node cannot, so the launcher starts it to end
-    with it (SIGTERM when the launcher dies, even by SIGKILL): none is left running."""
+    with it (SIGTERM when the launcher dies, even by SIGKILL, and SIGKILL 5 s later for one that
+    ignores SIGTERM: was left running): none is left running."""
     p = subprocess.Popen(
         [*CLI, "run", "im_short", "--duration", "30", "--out", str(tmp_path / "bag"),
-         "--external", f"torque_controller={DTC}"],
+         "--external", f"torque_controller={command}"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
     )  # fmt: skip
     pid = 0
+    program = shlex.split(command)[1]
     try:
         line = p.stderr.readline()
         pid = int(re.search(r"torque_controller pid (\d+)", line).group(1))
-        wait_until(lambda: "dtc_node.py" in Path(f"/proc/{pid}/cmdline").read_text(),
+        wait_until(lambda: program in Path(f"/proc/{pid}/cmdline").read_text(),
                    "the node did not start", timeout=30)  # fmt: skip
+        wait_until(lambda: bag_bytes(tmp_path / "bag") > 100_000, "the run did not start",
+                   timeout=60)  # fmt: skip
         p.kill()  # the launcher, SIGKILL: no chance to stop anything
         p.wait(timeout=10)
         wait_until(lambda: ended(pid),

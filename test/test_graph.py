@@ -210,11 +210,13 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
     s = tr.col("command", "strategy").astype(int)
     assert tr.strategy_names[s[0]] == "mptc" and tr.strategy_names[s[-1]] == "db_mptc"
     assert [e.changed for _, e in info.events] == [(("strategy", "db_mptc"),)]
-    # the outcome counts the steps whose three records came (the trace also needs state k+1)
+    # the outcome says why, and counts the steps applied: those whose state k+1 came, as the
+    # trace does
     stopped = re.fullmatch(
-        r"ERROR: stopped: (\d+) of 600000 steps; over the run .*", info.custom["outcome"]
+        r"ERROR: interrupted \(Ctrl-C\): (\d+) of 600000 steps; over the run .*",
+        info.custom["outcome"],
     )
-    assert stopped and int(stopped[1]) == info.counts["/drive/command"], info.custom["outcome"]
+    assert stopped and int(stopped[1]) == tr.steps, info.custom["outcome"]  # as report counts
 
 
 def assert_placed(nodes: dict[str, int]) -> None:
@@ -514,7 +516,8 @@ def test_a_full_disk_under_the_graph_is_said(tmp_path):
         preexec_fn=limit,
     )
     assert r.returncode == 2, r.stderr
-    assert "node metrics_logger" in r.stderr and "File too large" in r.stderr
+    assert "/drive/metrics_logger: " in r.stderr and "File too large" in r.stderr, r.stderr
+    assert "(metrics_logger, pid " in r.stderr, r.stderr  # the node whose message it is
     assert "was closed with" not in r.stderr
 
 

@@ -411,6 +411,65 @@ def test_a_node_recorder_takes_a_batch_at_once_as_it_takes_it_message_by_message
     assert sum(m[0] == "/parameter_events" for m in once) == 1
 
 
+def test_a_malformed_command_stream_never_crashes_the_recorder_or_costs_a_valid_step(tmp_path):
+    """A controller of one's own at step 100: a command of the wrong size, one with no layout,
+    the commands of the next 1,000 steps at once, then command 100 (the plant refuses the first
+    and stops). The recorder takes every valid step before it, leaves the rest out (counted,
+    the first said), and the bag closes readable with steps 0-99 whole (was: a layout error
+    that stopped the recording, or an IndexError pairing the steps, an unreadable bag)."""
+    from predictive_drive.bag import BagWriter
+    from predictive_drive.codec import CODECS, CdrWriter, MultiArrayCodec
+    from predictive_drive.config import load_scenario
+    from predictive_drive.core.control import strategy_names
+    from predictive_drive.core.runner import run_inprocess
+    from predictive_drive.core.signals import EXTERNAL
+    from predictive_drive.readback import read_bag
+    from predictive_drive.recording import RunRecorder, bag_info, tool_every, tool_messages
+
+    sc = load_scenario("im_short", strategy="mptc", duration=0.02)
+    tr = run_inprocess(sc)
+    every, own = tool_every(sc.ts), MultiArrayCodec(("k", "t", "s_a", "s_b", "s_c"))
+
+    def array(labels: str | None, values: tuple[float, ...]) -> bytes:
+        """A Float64MultiArray as rclpy sends it, with one labelled dimension or none."""
+        w = CdrWriter()
+        w.u32(0 if labels is None else 1)
+        if labels is not None:
+            w.string(labels)
+            w.u32(len(values))
+            w.u32(len(values))
+        w.u32(0)  # data_offset
+        w.f64_seq(values)
+        return w.bytes()
+
+    wrong_size = array("k,t,s_a,s_b,s_c", (100.0, 0.005, 1.0, 0.0))  # five labels, four values
+    no_layout = array(None, (100.0, 0.005, 1.0, 0.0, 0.0))
+    messages: list[tuple[str, bytes]] = [("reference", CODECS["reference"].encode(tr.reference[0]))]
+    for k in range(101):
+        state = tuple(tr.state[k])
+        messages.append(("state", CODECS["state"].encode(state)))
+        messages += [(key, data) for key, _, data in tool_messages(state, every)]
+        messages.append(("reference", CODECS["reference"].encode(tr.reference[k + 1])))
+        if k < 100:
+            messages.append(("command", CODECS["command"].encode(tuple(tr.command[k]))))
+    future = [own.encode((j, j * sc.ts, 1.0, 0.0, 0.0)) for j in range(101, 1101)]
+    for data in [wrong_size, no_layout, *future, own.encode((100.0, 0.005, 1.0, 0.0, 0.0))]:
+        messages.append(("command", data))
+    with BagWriter(tmp_path / "bag", info=bag_info(sc.with_strategy(EXTERNAL), "ros")) as w:
+        rec = RunRecorder(w, ts=sc.ts, steps=tr.steps, torque_limit=sc.speed_pi.torque_limit,
+                          strategy_names=strategy_names(sc.family), record_tools=False)  # fmt: skip
+        for i in range(0, len(messages), 384):
+            rec.take(messages[i : i + 384])
+            rec.flush()
+        rec.finish("stopped by the test")
+    assert rec.left_out == {"command": 3}  # the two malformed ones and the late command 100
+    assert rec.left_out_first.startswith("a /drive/command message: Float64MultiArray layout")
+    trace, info = read_bag(tmp_path / "bag")
+    assert trace.steps == 100 and list(trace.state[:, 0]) == list(range(101))
+    np.testing.assert_array_equal(trace.command[:, :-1], tr.command[:100, :-1])
+    assert info.custom["outcome"].startswith("ERROR: stopped by the test: 100 of 400 steps")
+
+
 def test_read_bag_decodes_what_the_mcap_library_decodes(tmp_path):
     """The per-step topics gathered by numpy equal each message decoded by the library's reader
     and the codec, one by one."""

@@ -21,7 +21,8 @@ from typing import TypeVar
 
 import numpy as np
 
-from .core.commands import FORMS, CommandError, command_from
+from .core.commands import FORMS, PULSE_SLACK, CommandError, command_from
+from .core.signals import COMMAND_INDEX, Command
 from .errors import BagError
 from .interface import RECORD_TOPICS, TOPICS
 
@@ -35,6 +36,7 @@ __all__ = [
     "CdrWriter",
     "MultiArrayCodec",
     "ParameterEvent",
+    "command_for_step",
     "decode_command",
     "decode_multiarray",
     "decode_parameter_event",
@@ -51,6 +53,9 @@ __all__ = [
 
 #: the fields of the command forms the plant resolves to pulses
 RESOLVED = frozenset(FORMS["switching state"] + FORMS["voltage reference"])
+#: a command row's pulse delays and duties (phases a, b, c)
+_DELAYS = slice(COMMAND_INDEX.delay_a, COMMAND_INDEX.delay_c + 1)
+_DUTIES = slice(COMMAND_INDEX.duty_a, COMMAND_INDEX.duty_c + 1)
 #: the encapsulation header: XCDR1, little endian
 HEADER = b"\x00\x01\x00\x00"
 T = TypeVar("T")
@@ -282,6 +287,47 @@ def decode_command(data: bytes, u_dc: Callable[[], float]) -> tuple[float, ...]:
     except (CommandError, BagError):
         pass
     return codec.decode(data)
+
+
+def command_for_step(data: bytes, *, k: int, t: float, u_dc: Callable[[], float]) -> Command:
+    """A /drive/command message as the plant applies it at step ``k`` (its state at ``t`` s):
+    the built-in layout as it is, a controller's own form resolved to pulses (a voltage
+    reference modulated from ``u_dc()`` V). CommandError, naming the field and the step, for
+    what the plant refuses (docs/ros.md#writing-your-own-controller): a message that is no
+    labelled array, an unknown or missing field, a pulse outside the period, a switching state
+    other than 0/1, a voltage that is not finite, the command of another step or of another
+    time than its state's."""
+    values = CODECS["command"].exact(data)
+    if values is not None and _pulses_fit(values):
+        cmd = Command(*values)
+    else:
+        try:
+            fields = labelled(data)
+        except BagError as e:
+            raise CommandError(f"step {k}: {e}", k=k) from None
+        voltage = "u_alpha" in fields or "u_beta" in fields
+        cmd = command_from(fields, u_dc=u_dc() if voltage else math.nan)
+    for name, wrong, shown, why in (
+        ("k", cmd.k != k, f"{cmd.k:g}",
+         f"the command for another step (the plant waits for step {k})"),
+        ("t", cmd.t != t, repr(cmd.t),
+         f"a command carries the time of the state it answers (state {k}: t = {t!r} s)"),
+    ):  # fmt: skip
+        if wrong:
+            raise CommandError(f"step {k}: field {name!r} = {shown}: {why}", field=name, k=cmd.k)
+    return cmd
+
+
+def _pulses_fit(values: tuple[float, ...]) -> bool:
+    """The pulses of a command in the built-in layout lie in the period (the fast path's check;
+    :func:`~.core.commands.command_from` says what is wrong with one that does not)."""
+    delay, duty = values[_DELAYS], values[_DUTIES]
+    return (
+        math.isfinite(sum(delay) + sum(duty))
+        and min(delay) >= 0.0
+        and min(duty) >= 0.0
+        and max(d + w for d, w in zip(delay, duty)) <= 1.0 + PULSE_SLACK
+    )
 
 
 def labelled(data: bytes) -> dict[str, float]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import re
 import typing
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,7 @@ from .interface import NAMESPACE, NODES
 
 __all__ = [
     "FAMILY_KEY",
+    "OWN_NODES",
     "apply_settings",
     "LEGACY_FAMILIES",
     "SHARED",
@@ -42,6 +44,7 @@ __all__ = [
     "section_class",
     "section_classes",
     "section_fields",
+    "section_parameters",
 ]
 
 SHARED = "/**"
@@ -278,10 +281,16 @@ def _params(doc: dict[str, Any], key: str, path: str | Path) -> dict[str, Any]:
 
 
 def load_scenario(
-    name_or_path: str | Path, *, strategy: str | None = None, duration: float | None = None
+    name_or_path: str | Path,
+    *,
+    strategy: str | None = None,
+    duration: float | None = None,
+    own: Collection[str] = (),
 ) -> Scenario:
     """Read and validate a scenario, with the command line's overrides applied (the starting
-    strategy, the run length in s); every error names the file and the key."""
+    strategy, the run length in s); every error names the file and the key. ``own``: the nodes
+    that are the user's (``run --external``), whose sections are theirs (see
+    :func:`load_scenario_text`)."""
     path = resolve_scenario_path(name_or_path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -291,13 +300,25 @@ def load_scenario(
         ) from None
     except OSError as e:
         raise ConfigError(f"{path}: cannot read it: {e.strerror}") from None
-    sc = load_scenario_text(text, path)
+    sc = load_scenario_text(text, path, own=own)
     return sc.with_strategy(strategy).with_duration(duration)
 
 
-def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> Scenario:
+def load_scenario_text(
+    text: str, path: str | Path, *, legacy: bool = False, own: Collection[str] = ()
+) -> Scenario:
     """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in).
-    ``legacy``: a recording's stored text, which may predate the ``family`` key."""
+    ``legacy``: a recording's stored text, which may predate the ``family`` key. ``own``: nodes
+    of the user's own (:data:`OWN_NODES`): their sections' keys are the user's, passed to their
+    node as they are and not checked; the scenario holds the built-in settings only where the
+    section happens to be a valid one (else None), and a torque controller of one's own is
+    named as its family's where the section names one of this machine (else the machine's
+    first)."""
+    unknown_own = sorted(set(own) - set(OWN_NODES))
+    if unknown_own:
+        raise ConfigError(
+            f"--external {unknown_own[0]}: not a node you can replace; one of {', '.join(OWN_NODES)}"
+        )
     doc = parse_yaml(text, path)
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected a ROS 2 parameter file (a mapping of node sections)")
@@ -310,19 +331,28 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
     run = build_section(RunParams, _params(doc, SHARED, path), {}, f"{path}: {SHARED}")
     ctrl_key = f"{NAMESPACE}/torque_controller"
     ctrl_params = dict(_params(doc, ctrl_key, path))
-    default = LEGACY_FAMILIES[Machine(run.machine)] if legacy else None
-    family = family_of(ctrl_params, f"{path}: {ctrl_key}", default)
+    if "torque_controller" in own:
+        family = _own_family(ctrl_params, run.machine)
+    else:
+        default = LEGACY_FAMILIES[Machine(run.machine)] if legacy else None
+        family = family_of(ctrl_params, f"{path}: {ctrl_key}", default)
     ctrl_params.pop(FAMILY_KEY, None)
     if (controls := controller_class(family).machine) != run.machine:
         raise ConfigError(
             f"{path}: {ctrl_key}.{FAMILY_KEY}: {family!r} controls a {controls} machine, but the "
             f"scenario's machine is {run.machine!r}"
         )
-    built = {}
+    built: dict[str, Any] = {}
     for node, (cls, nested) in section_classes(run.machine, family).items():
         key = f"{NAMESPACE}/{node}"
         params = ctrl_params if node == "torque_controller" else _params(doc, key, path)
-        built[node] = build_section(cls, params, nested, f"{path}: {key}")
+        if node not in own:
+            built[node] = build_section(cls, params, nested, f"{path}: {key}")
+            continue
+        try:  # the user's: the built-in settings where it happens to hold them
+            built[node] = build_section(cls, params, nested, f"{path}: {key}")
+        except ConfigError:
+            built[node] = None
     try:
         sc = Scenario(
             run,
@@ -333,11 +363,42 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
             family=family,
             source=str(path),
             text=text,
+            external="torque_controller" in own,
+            own=frozenset(own),
         )
     except ConfigError as e:  # its messages name the section and key
         raise ConfigError(f"{path}: {e}") from None
     _check_windows(sc, path)
     return sc
+
+
+#: the nodes a user may replace with their own (``run --external``)
+OWN_NODES = ("torque_controller", "speed_pi")
+
+
+def _own_family(params: dict[str, Any], machine: str) -> str:
+    """The family a torque controller of one's own is filed under (its strategy names): the
+    one its section names where that is one of this machine's, else the machine's first."""
+    named = params.get(FAMILY_KEY)
+    if named in CONTROLLERS and controller_class(str(named)).machine == machine:
+        return str(named)
+    return next(f for f, cls in CONTROLLERS.items() if cls.machine == machine)
+
+
+def section_parameters(text: str, node: str) -> dict[str, Any]:
+    """The parameters a scenario's section gives ``node``, as rcl names them (nested maps as
+    ``motor.r_s``): what a node of the user's own is started with, for the bag's metadata."""
+    doc = parse_yaml(text, "scenario")
+    section = doc.get(f"{NAMESPACE}/{node}", {}) if isinstance(doc, dict) else {}
+    params = section.get("ros__parameters", {}) if isinstance(section, dict) else {}
+
+    def flat(d: dict[str, Any], prefix: str) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for k, v in d.items():
+            out.update(flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+        return out
+
+    return flat(params, "") if isinstance(params, dict) else {}
 
 
 def _check_windows(sc: Scenario, path: str | Path) -> None:
@@ -355,13 +416,16 @@ def _check_windows(sc: Scenario, path: str | Path) -> None:
         )
 
 
-def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> str:
+def apply_settings(
+    text: str, settings: dict[str, Any], where: str | Path, *, own: Collection[str] = ()
+) -> str:
     """Scenario text with parameters replaced, as a new parameter file (a run's bag stores it).
 
     Keys are dotted: ``ts`` or ``duration`` (shared), or ``<node>.<key>[.<sub>]``, e.g.
     ``torque_controller.motor.l_q``. A value is a number, a string or a list; a string ``*f``
-    multiplies the present value by ``f`` (``*0.7``: 70 % of it). ConfigError names the key and
-    what it may be."""
+    multiplies the present value by ``f`` (``*0.7``: 70 % of it). The section of a node of the
+    user's own (``own``) takes any key, groups made as needed (``torque_controller.gain=3``).
+    ConfigError names the key and what it may be."""
     doc = parse_yaml(text, where)
     if not isinstance(doc, dict):
         raise ConfigError(f"{where}: expected a ROS 2 parameter file")
@@ -377,14 +441,17 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
                 f"<node>.<key> with node one of {', '.join(NODES)}"
             )
         params = _params(doc, section, where)
+        theirs = node in own
         for part in path[:-1]:
+            if theirs and part not in params:
+                params[part] = {}
             sub = params.get(part)
             if not isinstance(sub, dict):
                 raise ConfigError(f"setting {key!r}: {section} has no group {part!r}")
             params = sub
         leaf = path[-1]
         optional = _defaulted(doc, node, where) if len(path) == 1 else set()
-        if leaf not in params and leaf not in optional:
+        if leaf not in params and leaf not in optional and not theirs:
             raise ConfigError(
                 f"setting {key!r}: {section} has no key {leaf!r} here; keys: "
                 f"{', '.join(sorted(set(params) | optional))}"
@@ -394,7 +461,7 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
                 factor = float(value[1:])
             except ValueError:
                 raise ConfigError(f"setting {key!r}: {value!r} is not *<number>") from None
-            present = params[leaf]
+            present = params.get(leaf)
             if isinstance(present, bool) or not isinstance(present, (int, float)):
                 raise ConfigError(f"setting {key!r}: {present!r} is not a number to scale")
             value = present * factor
@@ -416,7 +483,9 @@ def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:
     return {f.name for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 
-def scenario_with(scenario: str | Path, settings: dict[str, Any], out_dir: Path) -> Path:
+def scenario_with(
+    scenario: str | Path, settings: dict[str, Any], out_dir: Path, *, own: Collection[str] = ()
+) -> Path:
     """The scenario as a file in ``out_dir`` with ``settings`` applied (see
     :func:`apply_settings`; the file itself when there are none): what a ROS engine's nodes
     read and the run's bag stores."""
@@ -425,5 +494,5 @@ def scenario_with(scenario: str | Path, settings: dict[str, Any], out_dir: Path)
         return path
     tag = "_".join(f"{k.rsplit('.', 1)[-1]}_{v}" for k, v in settings.items())
     out = out_dir / f"{path.stem}_{re.sub(r'[^A-Za-z0-9_.-]', '', tag)}.yaml"
-    out.write_text(apply_settings(path.read_text(), settings, path))
+    out.write_text(apply_settings(path.read_text(), settings, path, own=own))
     return out

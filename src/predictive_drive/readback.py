@@ -22,12 +22,12 @@ from .codec import (
     decode_command,
     decode_parameter_event,
 )
-from .config import load_scenario_text
-from .core.signals import STATE_INDEX
+from .core.signals import EXTERNAL, EXTERNAL_PREFIX, STATE_INDEX
 from .core.trace import Trace
 from .errors import BagError
 from .interface import RECORD_TOPICS, TOPICS
 from .mcapio import McapContents, Messages, read_file
+from .recording import OwnNode, own_nodes, scenario_of
 
 __all__ = ["BagInfo", "BagStatus", "bag_status", "read_bag"]
 
@@ -76,6 +76,11 @@ class BagInfo:
     #: the accepted parameter changes recorded on /parameter_events, with their log times (ns)
     events: tuple[tuple[int, ParameterEvent], ...] = ()
 
+    @property
+    def own_nodes(self) -> list[OwnNode]:
+        """The nodes of the user's own the run had: how each was started, its parameters."""
+        return own_nodes(self.info)
+
 
 def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     """Decode the per-step topics of a recording into a :class:`Trace` (complete steps only).
@@ -97,7 +102,7 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     @cache
     def u_dc() -> float:
         """The DC link of the run (a command of a controller's own may be a voltage)."""
-        return float(load_scenario_text(info["scenario_yaml"], path, legacy=True).plant.u_dc)
+        return float(scenario_of(info, path).plant.u_dc)
 
     by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
     tables: dict[str, np.ndarray] = {}
@@ -129,12 +134,14 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
     if n == 0:
         raise BagError(f"{path}: the recording holds no complete step")
     names = tuple(json.loads(info["strategy_names"]))
+    strategy = info.get("strategy", "")
     trace = Trace(
         float(info["ts"]),
         np.ascontiguousarray(state[: n + 1]),
         np.ascontiguousarray(reference[: n + 1]),
         np.ascontiguousarray(command[:n]),
         names,
+        strategy if strategy.startswith(EXTERNAL_PREFIX) else EXTERNAL,
     )
     custom = _custom_data(meta.get("rosbag2", {}))
     events.sort(key=lambda e: e[0])

@@ -15,7 +15,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,16 +34,18 @@ from .codec import (
     encode_diagnostics,
     encode_joint_state,
     encode_parameter_event,
+    labelled,
     stamp_ns,
     tool_stamp_ns,
 )
-from .config import load_scenario_text
+from .config import load_scenario_text, section_parameters
 from .core.commands import COMMAND_CONTRACT
 from .core.control import strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
-from .core.signals import COMMAND_INDEX, STATE_INDEX, strategy_name
+from .core.signals import COMMAND_INDEX, EXTERNAL, STATE_INDEX, strategy_name
 from .core.timebase import every_steps
+from .errors import BagError
 from .interface import (
     CLOCK_PERIOD,
     RECORD_TOPICS,
@@ -56,11 +58,13 @@ from .mcapio import MessageGroup
 
 __all__ = [
     "DIAGNOSTICS_NAME",
+    "OwnNode",
     "RunRecorder",
     "StrategySpan",
     "bag_info",
     "default_bag_dir",
     "diagnostics_message",
+    "own_nodes",
     "scenario_of",
     "spans_from_json",
     "strategy_spans",
@@ -73,8 +77,31 @@ K = STATE_INDEX.k  #: the step: the first field of every per-step record
 T = STATE_INDEX.t  #: simulated time: the second field of every per-step record
 
 
-def bag_info(sc: Scenario, engine: str) -> dict[str, Any]:
-    """What a bag stores about its run (the ``predictive_drive`` metadata record)."""
+@dataclass(frozen=True)
+class OwnNode:
+    """A node of the user's own in a run: its name, the command line the launcher started it
+    with (None: started by hand), and the parameters its section of the scenario gave it."""
+
+    name: str
+    command: str | None
+    parameters: dict[str, Any]
+
+    @property
+    def started(self) -> str:
+        return "started by hand" if self.command is None else f"started as `{self.command}`"
+
+
+def bag_info(
+    sc: Scenario, engine: str, commands: Mapping[str, str | None] | None = None
+) -> dict[str, Any]:
+    """What a bag stores about its run (the ``predictive_drive`` metadata record). ``commands``:
+    the nodes of the user's own and the command lines they were started with (None: by hand),
+    stored with the parameters their sections give them (``external``, JSON: read back by
+    :func:`own_nodes`)."""
+    own = {
+        name: {"command": command, "parameters": section_parameters(sc.text, name)}
+        for name, command in (commands or {}).items()
+    }
     return {
         "scenario": sc.name,
         "scenario_yaml": sc.text,
@@ -87,19 +114,32 @@ def bag_info(sc: Scenario, engine: str) -> dict[str, Any]:
         "strategy_names": list(strategy_names(sc.family)),
         # a controller of the user's own: the command contract it was held to
         **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
+        **({"external": json.dumps(own)} if own else {}),
     }
 
 
-def scenario_of(info: dict[str, str], where: Path) -> Scenario:
-    """The scenario a recording was made with, from its ``predictive_drive`` metadata record."""
-    sc = load_scenario_text(info["scenario_yaml"], f"{where} (stored scenario)", legacy=True)
+def own_nodes(info: Mapping[str, str]) -> list[OwnNode]:
+    """The nodes of the user's own a recording names (see :func:`bag_info`), in start order."""
+    return [
+        OwnNode(name, d.get("command"), dict(d.get("parameters", {})))
+        for name, d in json.loads(info.get("external", "{}")).items()
+    ]
+
+
+def scenario_of(info: Mapping[str, str], where: Path) -> Scenario:
+    """The scenario a recording was made with, from its ``predictive_drive`` metadata record
+    (the sections of the user's own nodes theirs, as when it ran)."""
+    own = [n.name for n in own_nodes(info)]
+    where_ = f"{where} (stored scenario)"
+    sc = load_scenario_text(info["scenario_yaml"], where_, legacy=True, own=own)
     return sc.with_strategy(info["strategy"]).with_duration(float(info["duration"]))
 
 
 def default_bag_dir(sc: Scenario, root: str | Path = "bags") -> Path:
-    """``bags/<scenario>_<strategy>_<date-time>_<pid>``."""
+    """``bags/<scenario>_<strategy>_<date-time>_<pid>``; a ':' (``external:NAME``) as '-': a
+    folder name with one breaks zip, SMB and Windows."""
     stamp = time.strftime("%Y%m%d-%H%M%S")
-    return Path(root) / f"{sc.name}_{sc.strategy}_{stamp}_{os.getpid()}"
+    return Path(root) / f"{sc.name}_{sc.strategy.replace(':', '-')}_{stamp}_{os.getpid()}"
 
 
 def tool_every(ts: float) -> int:
@@ -124,11 +164,15 @@ _COUNTS = ("k", "steps", "steps_planned")
 
 
 def diagnostics_message(
-    snap: dict[str, float], level: int, message: str, strategy_names: tuple[str, ...]
+    snap: dict[str, float],
+    level: int,
+    message: str,
+    strategy_names: tuple[str, ...],
+    external: str = EXTERNAL,
 ) -> tuple[int, bytes]:
     """The /diagnostics message of a snapshot: counts as integers, figures as exact floats,
     the strategy by name."""
-    name = strategy_name(strategy_names, snap["strategy"]) if "strategy" in snap else ""
+    name = strategy_name(strategy_names, snap["strategy"], external) if "strategy" in snap else ""
     values = [
         (key, str(int(v)) if key in _COUNTS else diagnostics_value(v))
         for key, v in snap.items()
@@ -157,11 +201,12 @@ def spans_from_json(text: str) -> list[StrategySpan]:
 
 
 def strategy_spans(
-    strategy: Iterable[float], names: tuple[str, ...], k0: int = 0
+    strategy: Iterable[float], names: tuple[str, ...], k0: int = 0, external: str = EXTERNAL
 ) -> list[StrategySpan]:
-    """The spans of a run's per-step strategy index (the command's ``strategy`` field)."""
+    """The spans of a run's per-step strategy index (the command's ``strategy`` field; NaN: a
+    controller of one's own, named ``external``)."""
     spans, k = [], k0
-    for name, steps in itertools.groupby(strategy, key=lambda i: strategy_name(names, i)):
+    for name, steps in itertools.groupby(strategy, key=lambda i: strategy_name(names, i, external)):
         n = sum(1 for _ in steps)
         spans.append(StrategySpan(name, k, k + n - 1))
         k += n
@@ -170,6 +215,16 @@ def strategy_spans(
 
 #: the strategy index before the first span: no command's (theirs are >= 0, or NaN)
 _NO_SPAN = -1.0
+
+
+def _decode_or_nan(codec: Any, data: bytes) -> tuple[float, ...]:
+    """A record's values by field name, or all NaN where the message is no labelled array of
+    a step and a time (see :meth:`RunRecorder._screen`)."""
+    try:
+        values: tuple[float, ...] = codec.decode(data)
+        return values
+    except BagError:
+        return (math.nan,) * len(codec.fields)
 
 
 def _same_strategy(a: float, b: float) -> bool:
@@ -212,12 +267,15 @@ class RunRecorder:
         record_tools: bool,
         publish: Callable[[str, bytes], None] | None = None,
         live: Callable[[str, int, bytes], None] | None = None,
+        external: str = EXTERNAL,
     ) -> None:
         """``record_tools``: the in-process engine, where the recorder also writes what the
         plant and the controller node would publish: /clock, /drive/joint_states, and a
         parameter event when the strategy changes. ``live(topic_key, t_ns, data)``: a second
-        sink that sees every message as it comes (the live view)."""
+        sink that sees every message as it comes (the live view). ``external``: the name of a
+        controller of one's own (its commands carry no strategy index)."""
         self.writer = writer
+        self.external = external
         self.live = LiveMetrics(ts=ts, torque_limit=torque_limit)
         self.strategy_names = strategy_names
         self.ts = ts
@@ -239,6 +297,13 @@ class RunRecorder:
         }
         #: node path: the last step taken of each record
         self.last_k = {"state": -1, "reference": -1, "command": -1}
+        #: in-process: the last state written
+        self._state_written = -1
+        #: node path: the step of each record's last message taken (see _screen)
+        self._last_taken = {"state": -1.0, "reference": -1.0, "command": -1.0}
+        #: node path: messages left out of the bag, by topic key, and what the first one was
+        self.left_out: dict[str, int] = {}
+        self.left_out_first = ""
         self._warned = ""
         self._finished = False
         self._spans: list[StrategySpan] = []  #: the last one's end is ``_through``
@@ -335,6 +400,7 @@ class RunRecorder:
         if t > self.last_t:
             self.last_t = t
         self._through = int(c[-1, K])  # the span goes on
+        self._state_written = int(s[-1, K])
         snap = self.live.add_steps(s, r, c)
         if snap is not None:
             self._diagnose(snap)
@@ -350,6 +416,7 @@ class RunRecorder:
     ) -> None:
         """One step, messages and running metrics (a new span, the last step, a live view)."""
         state, ref = tuple(s.tolist()), tuple(r.tolist())
+        self._state_written = int(state[K])
         write = self._hold
         write("state", stamp_ns(state[T]), self._prefix_state + bytes(sb))
         if self._tools and not int(state[K]) % self._every:
@@ -384,10 +451,75 @@ class RunRecorder:
         messages a simulated second pass here: the records of a batch are decoded and their
         steps' running metrics summed at once (:meth:`_take_batch`); with a live view, which
         sees every message as it comes, message by message (the same bag)."""
+        taken, rows = self._screen(taken)
         if self._live is None:
-            self._take_batch(taken)
+            self._take_batch(taken, rows)
         else:
             self._take_each(taken)
+
+    def _screen(
+        self, taken: list[tuple[str, bytes]]
+    ) -> tuple[list[tuple[str, bytes]], dict[str, np.ndarray]]:
+        """The messages of a batch the bag takes, and each record's rows among them. A per-step
+        record is taken when it decodes as a labelled array (by field name; NaN for what it
+        lacks) and carries a whole step later than the last one taken of its topic, at a finite
+        time: what a node of the graph publishes, each topic in step order. Anything else (a
+        command of the wrong size, with no layout, for a step taken already: a controller of
+        one's own at fault) is left out and counted in :attr:`left_out`; the plant refuses it
+        and names it, and every valid step is kept (the pairing by step relies on the order)."""
+        rows: dict[str, np.ndarray] = {}
+        bad: set[int] = set()
+        for record, key in RECORD_TOPICS.items():
+            where = [i for i, (k, _) in enumerate(taken) if k == key]
+            if not where:
+                continue
+            codec = CODECS[key]
+            payloads = [taken[i][1] for i in where]
+            try:
+                values = codec.decode_rows(payloads)
+            except BagError:  # one of them is not of a labelled layout: each on its own
+                values = np.array([_decode_or_nan(codec, data) for data in payloads])
+            last = self._last_taken[record]
+            ks = values[:, K]
+            steps = np.floor(ks) == ks  # NaN: no step
+            rising = ks[0] > last and (len(ks) == 1 or bool((np.diff(ks) > 0).all()))
+            if rising and steps.all() and np.isfinite(values[:, T]).all():  # as the graph sends
+                self._last_taken[record] = float(ks[-1])
+            else:
+                keep = []
+                for j, row in enumerate(values):
+                    if row[K] > last and row[K] == math.floor(row[K]) and math.isfinite(row[T]):
+                        keep.append(j)
+                        last = float(row[K])
+                    else:
+                        bad.add(where[j])
+                        self._left_out(key, row, last, taken[where[j]][1])
+                values = values[keep]
+                self._last_taken[record] = last
+            rows[record] = values
+        if bad:
+            taken = [m for i, m in enumerate(taken) if i not in bad]
+        return taken, rows
+
+    def _left_out(self, key: str, row: np.ndarray, last: float, data: bytes) -> None:
+        """A message the bag does not take (see :meth:`_screen`): counted, the first said."""
+        self.left_out[key] = self.left_out.get(key, 0) + 1
+        if self.left_out_first:
+            return
+        topic = TOPICS[key].name
+        if math.isnan(row[K]):
+            try:
+                labelled(data)
+                why = "it carries no step k and time t"
+            except BagError as e:
+                why = str(e)
+        elif not row[K] > last:
+            why = f"it is for step {row[K]:g}, after step {last:g} was taken"
+        elif row[K] != math.floor(row[K]):
+            why = f"its step k = {row[K]!r} is no whole number"
+        else:
+            why = f"its time t = {row[T]!r} is not finite"
+        self.left_out_first = f"a {topic} message: {why}"
 
     def _take_each(self, taken: list[tuple[str, bytes]]) -> None:
         """:meth:`take`, message by message."""
@@ -399,7 +531,7 @@ class RunRecorder:
         for key, data in taken:
             record = _RECORD_OF.get(key)
             if record is not None:
-                row = CODECS[key].decode(data)
+                row = _decode_or_nan(CODECS[key], data)  # screened: it decodes
                 t = row[T]
                 ns = round(t * 1e9)  # stamp_ns
                 hold(key, ns, data)
@@ -423,7 +555,7 @@ class RunRecorder:
                     offer(key, ns, data)
                 seen[key] = ns
 
-    def _take_batch(self, taken: list[tuple[str, bytes]]) -> None:
+    def _take_batch(self, taken: list[tuple[str, bytes]], decoded: dict[str, np.ndarray]) -> None:
         """:meth:`take` of a batch: each topic's records decoded at once (one numpy call when
         all have this version's layout), paired with the records of their step by k, the
         completed steps' running metrics summed at once; the messages held as blocks, a
@@ -440,7 +572,7 @@ class RunRecorder:
             where = np.flatnonzero(channels == self._channel_of[key])
             if not len(where):
                 continue
-            rows = CODECS[key].decode_rows([datas[i] for i in where.tolist()])
+            rows = decoded[record]
             ns[where] = np.rint(rows[:, T] * 1e9)  # stamp_ns
             t_at[where] = rows[:, T]
             self.last_k[record] = int(rows[-1, K])
@@ -641,7 +773,7 @@ class RunRecorder:
             return
         self._seal()
         self._index, self._through = index, k
-        name = strategy_name(self.strategy_names, index)
+        name = strategy_name(self.strategy_names, index, self.external)
         self._spans.append(StrategySpan(name, k, k))
         if k > 0 and self._events:
             t = k * self.ts
@@ -667,7 +799,11 @@ class RunRecorder:
         self._finished = True
         self._diagnose(self.live.flush())
         total = self.live.total() or {"k": -1.0, "t": self.last_t, "steps": 0.0}
-        done = int(total["steps"])
+        # the steps the plant applied: those whose next state came (a command it refused, the
+        # last one of a stopped run, had its three records but never acted), as `report` counts
+        last_state = max(self.last_k["state"], self._state_written)
+        done = min(int(total["steps"]), max(last_state, 0))
+        total["steps"] = float(done)
         total = {**total, "steps_planned": float(self.steps)}
         figures = (
             f"; over the run T_e RMSE {total['t_rmse']:.4g} N·m, f_ave {total['f_ave_hz']:.5g} Hz"
@@ -680,11 +816,16 @@ class RunRecorder:
             level, message = WARN, f"complete: {done} steps{figures}; {self._warned}"
         else:
             level, message = OK, f"complete: {done} steps{figures}"
-        ns, data = diagnostics_message(total, level, message, self.strategy_names)
+        ns, data = diagnostics_message(total, level, message, self.strategy_names, self.external)
         self._hold("diagnostics", max(ns, self._floor()), data)
         if self._publish is not None:
             self._publish("diagnostics", data)
-        self.writer.custom_data["strategies"] = spans_to_json(self.spans)
+        spans = [
+            dataclasses.replace(sp, last=min(sp.last, done - 1))
+            for sp in self.spans
+            if sp.first < done
+        ]  # a strategy span of a step never applied is none
+        self.writer.custom_data["strategies"] = spans_to_json(spans)
         self.writer.custom_data["outcome"] = f"{LEVEL_NAMES[level]}: {message}"
 
     def _diagnose(self, snap: dict[str, float] | None) -> None:
@@ -694,7 +835,7 @@ class RunRecorder:
         if wrong and not self._warned:
             self._warned = f"from {snap['t']:.6g} s: {wrong}"
         message = wrong or f"running: {int(snap['steps'])} of {self.steps} steps"
-        ns, data = diagnostics_message(snap, level, message, self.strategy_names)
+        ns, data = diagnostics_message(snap, level, message, self.strategy_names, self.external)
         metrics = CODECS["metrics"].encode(
             tuple(float(level) if f == "level" else snap[f] for f in TOPICS["metrics"].fields)
         )

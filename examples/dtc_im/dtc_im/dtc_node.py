@@ -111,6 +111,10 @@ class DTCNode(Node):
             torque_band=param("torque_band", 0.05),
             flux_band=param("flux_band", 0.005),
         )
+        self.get_logger().info(
+            f"switching-table DTC: torque band {self.law.torque_band:g} N·m, flux band "
+            f"{self.law.flux_band:g} Wb, {self.steps} steps"
+        )
         self.states: dict[int, dict[str, float]] = {}
         self.refs: dict[int, dict[str, float]] = {}
         self.k = 0

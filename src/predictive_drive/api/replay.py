@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..core.signals import external_name
 from ..errors import ConfigError
 
 if TYPE_CHECKING:  # the ros layer imports rclpy: only when a replay is asked for
@@ -32,28 +33,31 @@ def replay(bag: str | Path, **options: Any) -> PlayResult:
 
 def replay_into(
     bag: str | Path, *, node: str = "torque_controller", strategy: str | None = None,
-    out: str | Path | None = None, command: str | None = None,
+    out: str | Path | None = None, command: str | None = None, label: str | None = None,
 ) -> StepResult:  # fmt: skip
     """Feed ``bag`` into a ``node`` process step by step (see
     :mod:`predictive_drive.ros.stepper`) and record the result; says how the new decisions agree
     with the recorded ones, the controller's compute time and the pace. ``command``: a node of
-    the user's own to feed instead of ours (docs/ros.md#writing-your-own-controller)."""
+    the user's own to feed instead of ours (docs/ros.md#writing-your-own-controller), named
+    ``external:label`` in the new bag."""
     from ..bag import claim_bag_dir
+    from ..ros.processes import command_line
     from ..ros.stepper import replay_into as step
 
     if node != "torque_controller":
         raise ConfigError(f"--into: {node!r}; a recording can be replayed into: torque_controller")
-    if command is not None and (not command.strip() or strategy is not None):
-        raise ConfigError(
-            f"--into {node}={command}: "
-            + ("an empty command" if not command.strip() else "your node has no --strategy")
-        )
+    if command is not None and strategy is not None:
+        raise ConfigError(f"--into {node}={command}: your node has no --strategy")
+    if command is not None:  # a typo is said before anything starts
+        command_line(command, option=f"--into {node}=")
+    if label is not None:
+        if command is None:
+            raise ConfigError(f"--label {label}: names your own node: give --into {node}=COMMAND")
+        external_name(label)
     source = Path(bag)
     if out is None:
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        out = (
-            source.resolve().parent
-            / f"{source.resolve().name}_into_{'own' if command else strategy or 'recorded'}_{stamp}"
-        )
+        into = "own" if command else strategy or "recorded"
+        out = source.resolve().parent / f"{source.resolve().name}_into_{label or into}_{stamp}"
     with claim_bag_dir(out) as target:
-        return step(source, target, strategy=strategy, command=command)
+        return step(source, target, strategy=strategy, command=command, label=label)

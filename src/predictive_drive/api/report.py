@@ -15,7 +15,7 @@ from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
 from ..readback import BagInfo, read_bag
-from ..recording import StrategySpan, scenario_of, spans_from_json, strategy_spans
+from ..recording import OwnNode, StrategySpan, scenario_of, spans_from_json, strategy_spans
 
 __all__ = [
     "Evaluation",
@@ -160,12 +160,15 @@ class RecordingDetails:
     parameter_events: list[ParameterChange]
     outcome: str
     load_steps: list[LoadStep] = field(default_factory=list)
+    #: the nodes of the user's own: how each was started, the parameters its section gave it
+    own_nodes: list[OwnNode] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "strategies": [dataclasses.asdict(s) for s in self.strategies],
             "parameter_events": [dataclasses.asdict(e) for e in self.parameter_events],
             "outcome": self.outcome,
+            "own_nodes": [dataclasses.asdict(n) for n in self.own_nodes],
         }
         if self.load_steps:
             out["load_steps"] = [
@@ -188,6 +191,7 @@ def details_of(ev: Evaluation) -> RecordingDetails:
         ],
         outcome=ev.info.custom.get("outcome", ""),
         load_steps=steps_of(ev),
+        own_nodes=ev.info.own_nodes,
     )
 
 
@@ -267,7 +271,7 @@ def strategies_of(ev: Evaluation) -> list[StrategySpan]:
     if "strategies" in ev.info.custom:
         return spans_from_json(ev.info.custom["strategies"])
     tr = ev.trace
-    return strategy_spans(tr.col("command", "strategy"), tr.strategy_names)
+    return strategy_spans(tr.col("command", "strategy"), tr.strategy_names, external=tr.external)
 
 
 def steps_of(ev: Evaluation) -> list[LoadStep]:

@@ -13,16 +13,18 @@ from typing import Any
 
 from .. import interrupts
 from ..bag import BagWriter, check_new_bag, claim_bag_dir
-from ..config import load_scenario, scenario_with
+from ..config import OWN_NODES, load_scenario, scenario_with
 from ..core.control import EXTERNAL, strategy_names
 from ..core.metrics import Metrics
 from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
+from ..core.signals import external_name
 from ..core.timebase import step_index
 from ..errors import ConfigError, Interrupted
 from ..live import LiveView, check_port
 from ..readback import bag_status
 from ..recording import RunRecorder, bag_info, default_bag_dir
+from ..ros.processes import command_line
 from .report import RecordingDetails, details_of, evaluate
 
 __all__ = ["ENGINES", "EXTERNAL_NODES", "RunResult", "run", "run_inprocess_to_bag", "switch_steps"]
@@ -101,7 +103,7 @@ def run_inprocess_to_bag(
                 writer,
                 ts=sc.ts,
                 steps=sc.run.steps,
-                torque_limit=sc.speed_pi.torque_limit,
+                torque_limit=sc.torque_limit,
                 strategy_names=names,
                 record_tools=True,
                 live=None if live is None else live.offer,
@@ -130,18 +132,21 @@ def run_inprocess_to_bag(
 
 
 @contextlib.contextmanager
-def scenario_file(scenario: str | Path, settings: dict[str, Any] | None) -> Iterator[str | Path]:
+def scenario_file(
+    scenario: str | Path, settings: dict[str, Any] | None, *, own: Sequence[str] = ()
+) -> Iterator[str | Path]:
     """The scenario with ``settings`` applied, as a file that lasts as long as the block (a ROS
-    engine's nodes read it); the scenario itself when there are none."""
+    engine's nodes read it); the scenario itself when there are none. ``own``: the nodes of the
+    user's own, whose sections take any key."""
     if not settings:
         yield scenario
         return
     with tempfile.TemporaryDirectory(prefix="predictive-drive-") as tmp:
-        yield scenario_with(scenario, settings, Path(tmp))
+        yield scenario_with(scenario, settings, Path(tmp), own=own)
 
 
 #: the nodes a user may replace with their own (``run --external``)
-EXTERNAL_NODES = ("torque_controller", "speed_pi")
+EXTERNAL_NODES = OWN_NODES
 
 
 def _check_external(
@@ -149,10 +154,16 @@ def _check_external(
     engine: str,
     strategy: str | None,
     switches: Sequence[tuple[float, str]],
+    label: str | None,
 ) -> None:
-    """ConfigError for an --external that cannot be: an unknown node, an empty command, an
-    engine without separate node processes, a strategy or a switch for a controller of one's
-    own."""
+    """ConfigError for an --external that cannot be: an unknown node, an empty command or one
+    that cannot start, an engine without separate node processes, a strategy or a switch for a
+    controller of one's own; a --label without one."""
+    if label is not None and "torque_controller" not in external:
+        raise ConfigError(
+            f"--label {label}: names a torque controller of your own: give --external "
+            "torque_controller[=COMMAND] too"
+        )
     if not external:
         return
     for name, command in external.items():
@@ -164,6 +175,8 @@ def _check_external(
             raise ConfigError(
                 f"--external {name}=: an empty command (leave out '=' to start it by hand)"
             )
+        if command is not None:  # a typo is said before anything starts, not as a node's death
+            command_line(command, option=f"--external {name}=")
     if engine != "ros":
         raise ConfigError(
             f"--external runs your node as a process of its own: --engine ros, not {engine}"
@@ -190,30 +203,35 @@ def run(
     peer_timeout: float = 10.0,
     live: int = 0,
     external: Mapping[str, str | None] | None = None,
+    label: str | None = None,
+    startup_timeout: float = 60.0,
 ) -> RunResult:
     """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
     ``sched``: CPU placement (``paired`` | ``none``, see
     :func:`predictive_drive.ros.placement.cpu_plan`) and scheduling policy (``batch`` |
     ``other``) of the ``ros`` engine's node processes; ``peer_timeout``: s of wall time a node
-    of a ROS engine waits for a silent peer before the run fails; ``live``: a port to serve the
+    of a ROS engine waits for a silent peer before the run fails; ``startup_timeout``: s the
+    graph waits for every node to match and for command 0 (a node started by hand included);
+    ``live``: a port to serve the
     running drive on to Foxglove / Lichtblick (0: none; see :mod:`predictive_drive.live`);
     ``settings``: scenario keys changed for this run (see
     :func:`predictive_drive.config.apply_settings`); ``external``: nodes of the user's own in
     place of ours, by name (``torque_controller``, ``speed_pi``): the command that starts one,
-    or None to start it by hand (docs/ros.md#writing-your-own-controller)."""
+    or None to start it by hand (docs/ros.md#writing-your-own-controller); their sections of
+    the scenario (and ``settings`` of them) are theirs, not checked; ``label``: the name of a
+    torque controller of one's own, ``external:LABEL`` in the recording, tables and figures."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     external = dict(external or {})
-    _check_external(external, engine, strategy, switches)
+    _check_external(external, engine, strategy, switches, label)
     if "torque_controller" in external:
-        strategy = EXTERNAL
-    if not (math.isfinite(peer_timeout) and peer_timeout > 0):
-        raise ConfigError(
-            f"--peer-timeout must be a positive number of seconds, got {peer_timeout}"
-        )
-    with scenario_file(scenario, settings) as source:
+        strategy = external_name(label) if label is not None else EXTERNAL
+    for option, value in (("--peer-timeout", peer_timeout), ("--startup-timeout", startup_timeout)):
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError(f"{option} must be a positive number of seconds, got {value}")
+    with scenario_file(scenario, settings, own=list(external)) as source:
         try:
-            sc = load_scenario(source, strategy=strategy, duration=duration)
+            sc = load_scenario(source, strategy=strategy, duration=duration, own=list(external))
         except ConfigError as e:  # name what the user gave, not the file made of it
             if source == scenario:
                 raise
@@ -248,6 +266,7 @@ def run(
                         peer_timeout=peer_timeout,
                         live_port=live,
                         external=external,
+                        startup_timeout=startup_timeout,
                     )
             except KeyboardInterrupt:
                 status = bag_status(bag).describe()

@@ -149,6 +149,9 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
                 f"  {'strategy':<11}{sp.strategy:>16}   steps {sp.first}-{sp.last} "
                 f"({sp.t_start:g}-{sp.t_end:g} s)"
             )
+    for node in d.own_nodes:
+        given = ", ".join(f"{k}={v}" for k, v in node.parameters.items()) or "none"
+        print(f"  {'your node':<11}{node.name}: {node.started}; parameters: {given}")
     if d.outcome:
         print(f"  {'outcome':<11}{d.outcome}")
     for e in d.parameter_events:

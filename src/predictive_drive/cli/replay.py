@@ -16,7 +16,7 @@ HELP = (
 #: the options of playing onto topics, and of replaying into a node
 PLAY_OPTIONS = ("rate", "start_offset", "playback_duration", "loop", "topics", "exclude_topics",
                 "remap", "clock", "start_paused")  # fmt: skip
-INTO_OPTIONS = ("strategy", "out")
+INTO_OPTIONS = ("strategy", "out", "label")
 
 
 def _remap(text: str) -> tuple[str, str]:
@@ -59,6 +59,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="the strategy to replay into (default: the recording's, switched where it switched)",
     )
     into.add_argument("--out", help="the new bag (default: beside the recording)")
+    into.add_argument(
+        "--label",
+        metavar="NAME",
+        help="with =COMMAND: your controller's name, external:NAME in the new bag (as run --label)",
+    )
 
 
 def main(a: argparse.Namespace) -> int:
@@ -101,8 +106,9 @@ def main(a: argparse.Namespace) -> int:
 def _into(a: argparse.Namespace) -> int:
     node, sep, command = a.into.partition("=")
     d = replay_into(
-        a.bag, node=node, strategy=a.strategy, out=a.out, command=command if sep else None
-    )
+        a.bag, node=node, strategy=a.strategy, out=a.out, command=command if sep else None,
+        label=a.label,
+    )  # fmt: skip
     if a.json:
         return say_json(d)
     print(

@@ -79,6 +79,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "parameter files are appended), or without =COMMAND you start it by hand as the run "
         "says (docs/ros.md, 'Writing your own controller')",
     )
+    p.add_argument(
+        "--label",
+        metavar="NAME",
+        help="with --external torque_controller: your controller's name, external:NAME in the "
+        "bag, its folder name, report, compare and figures (letters, digits, _ . + -; default "
+        "torque_controller); --set torque_controller.KEY=VALUE gives it parameters",
+    )
     p.add_argument("--out", help="bag directory to write (must not exist)")
     p.add_argument(
         "--live",
@@ -97,6 +104,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "before the run fails (default 10)",
     )
     p.add_argument(
+        "--startup-timeout",
+        type=float,
+        metavar="S",
+        help="ROS engines: s of wall time the graph waits for every node to match and for command "
+        "0, a node you start by hand included (default 60)",
+    )
+    p.add_argument(
         "--switch", action="append", type=_switch, metavar="T:STRATEGY",
         help="switch the strategy at simulated time T (repeatable)",
     )  # fmt: skip
@@ -108,7 +122,7 @@ def main(a: argparse.Namespace) -> int:
                "affinity", "sched")  # fmt: skip
     if a.engine == "inprocess":
         refuse(a, "applies to the ROS engines only (there are no peers in-process)",
-               "peer_timeout")  # fmt: skip
+               "peer_timeout", "startup_timeout")  # fmt: skip
     if a.live:
         print(
             f"predictive-drive: live view on ws://127.0.0.1:{a.live} (Foxglove / Lichtblick: "
@@ -129,8 +143,10 @@ def main(a: argparse.Namespace) -> int:
             affinity=a.affinity or "paired",
             sched=a.sched or "batch",
             peer_timeout=10.0 if a.peer_timeout is None else a.peer_timeout,
+            startup_timeout=60.0 if a.startup_timeout is None else a.startup_timeout,
             live=a.live or 0,
             external=_external(a.external or []),
+            label=a.label,
         )
     finally:
         close()

@@ -27,6 +27,7 @@ from .svpwm import svpwm
 __all__ = [
     "COMMAND_CONTRACT",
     "FORMS",
+    "PULSE_SLACK",
     "CommandError",
     "command_from",
 ]
@@ -42,7 +43,7 @@ FORMS: dict[str, tuple[str, ...]] = {
 #: the fields a command may carry
 ALLOWED = frozenset(Command._fields).union(*FORMS.values())
 #: slack on delay + duty ≤ 1 (a duty computed as 1 - delay in floating point)
-_EPS = 1e-9
+PULSE_SLACK = 1e-9
 
 
 class CommandError(ValueError):
@@ -102,7 +103,7 @@ def _pulses(fields: Mapping[str, float], form: str, u_dc: float, k: float) -> Ph
             for name in (d, w):
                 if not (math.isfinite(fields[name]) and 0.0 <= fields[name] <= 1.0):
                     raise bad(name, "a fraction of Ts must lie in [0, 1]")
-            if fields[d] + fields[w] > 1.0 + _EPS:
+            if fields[d] + fields[w] > 1.0 + PULSE_SLACK:
                 raise bad(w, f"{d} + {w} = {fields[d] + fields[w]!r} exceeds the period (1)")
         return PhasePulses(*(fields[f] for f in PhasePulses._fields))
     if form == "switching state":

@@ -295,7 +295,8 @@ def compute_metrics(
     by_strategy = {}
     for s in np.unique(strat):  # NaN (a controller of the user's own) once, as one strategy
         steps = np.isnan(strat) if np.isnan(s) else strat == s
-        by_strategy[strategy_name(trace.strategy_names, float(s))] = float(np.median(ns[steps]))
+        name = strategy_name(trace.strategy_names, float(s), trace.external)
+        by_strategy[name] = float(np.median(ns[steps]))
     m = Metrics(
         t_start=k0 * trace.ts,
         t_end=k1 * trace.ts,

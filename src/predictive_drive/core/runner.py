@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable, Sequence
 
+from ..errors import ConfigError
 from .control import Controller, make_controller, strategy_names
 from .control.speed_pi import SpeedPI
 from .plant import InverterPlant, make_plant
@@ -80,6 +81,11 @@ def build_controller(scenario: Scenario) -> Controller:
 
 
 def build(scenario: Scenario) -> Components:
+    if scenario.speed_pi is None or scenario.controller is None or scenario.external:
+        raise ConfigError(
+            f"{scenario.source}: a node of it is the user's own (run --external): the in-process "
+            f"engine runs this package's nodes only"
+        )
     return Components(
         plant=build_plant(scenario.run.machine, scenario.plant, ts=scenario.ts),
         speed_pi=SpeedPI(scenario.speed_pi, ts=scenario.ts),

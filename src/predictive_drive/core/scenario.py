@@ -12,6 +12,7 @@ from .control import EXTERNAL, controller_class
 from .control.speed_pi import SpeedPIParams
 from .fields import check_fields, choice, quantity
 from .machines import Machine
+from .signals import EXTERNAL_PREFIX, external_name
 from .timebase import StepProfile, step_index
 
 __all__ = ["MAX_STEPS", "LoggerParams", "PlantParams", "RunParams", "Scenario"]
@@ -163,20 +164,29 @@ class Scenario:
 
     run: RunParams
     plant: PlantParams
-    speed_pi: SpeedPIParams
+    #: None: the speed loop is the user's (``own``) and its section is not the built-in's
+    speed_pi: SpeedPIParams | None
+    #: None: the torque controller is the user's (``own``) and its section is not the family's
     controller: Any
     logger: LoggerParams
     family: str
     source: str = ""
     text: str = ""
-    #: the torque controller is a node of the user's own (:data:`~.control.EXTERNAL`); the
+    #: the torque controller is a node of the user's own, named :attr:`own_name`; the
     #: section's own strategy is then not run
     external: bool = False
+    #: the strategy name of a torque controller of the user's own: ``external:LABEL``
+    own_name: str = EXTERNAL
+    #: the nodes whose sections are the user's (``run --external``): their keys reach the node
+    #: as parameters and are not checked against a built-in node's
+    own: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)
         cls = controller_class(self.family)
-        if not isinstance(self.controller, cls.params_type):
+        if self.controller is None and "torque_controller" in self.own:
+            pass  # the user's section: nothing of the family's to check
+        elif not isinstance(self.controller, cls.params_type):
             raise ConfigError(
                 f"torque_controller: family {self.family!r} takes {cls.params_type.__name__}, "
                 f"got {type(self.controller).__name__}"
@@ -200,19 +210,30 @@ class Scenario:
         return Machine(self.run.machine)
 
     @property
+    def torque_limit(self) -> float:
+        """T* saturates at ± this, N·m (NaN: a speed loop of the user's own says not)."""
+        return math.nan if self.speed_pi is None else self.speed_pi.torque_limit
+
+    @property
     def strategy(self) -> str:
-        """The strategy the controller starts with (:data:`~.control.EXTERNAL`: a node of the
-        user's own)."""
-        return EXTERNAL if self.external else str(self.controller.strategy)
+        """The strategy the controller starts with (``external:LABEL``: a node of the user's
+        own, :attr:`own_name`)."""
+        return self.own_name if self.external else str(self.controller.strategy)
 
     def with_strategy(self, strategy: str | None) -> Scenario:
         """The same scenario starting with another strategy of its family (None: unchanged), or
-        with a torque controller of the user's own (:data:`~.control.EXTERNAL`); ConfigError
-        lists the family's strategies."""
+        with a torque controller of the user's own (``external:LABEL``, see
+        :func:`~.signals.external_name`); ConfigError lists the family's strategies."""
         if strategy is None:
             return self
-        if strategy == EXTERNAL:
-            return dataclasses.replace(self, external=True)
+        if strategy.startswith(EXTERNAL_PREFIX):
+            name = external_name(strategy[len(EXTERNAL_PREFIX) :])
+            return dataclasses.replace(self, external=True, own_name=name)
+        if self.controller is None:
+            raise ConfigError(
+                f"strategy {strategy!r}: the torque controller's section is that of a controller "
+                f"of one's own, not of {self.family!r}: there is no built-in strategy to run"
+            )
         names = tuple(controller_class(self.family).strategies)
         if strategy not in names:
             raise ConfigError(

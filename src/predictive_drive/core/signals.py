@@ -11,13 +11,17 @@ it by name through the index records :data:`STATE_INDEX`, :data:`REFERENCE_INDEX
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, NamedTuple
+
+from ..errors import ConfigError
 
 __all__ = [
     "strategy_name",
     "COMMAND_DIAGNOSTICS",
     "COMMAND_INDEX",
     "EXTERNAL",
+    "EXTERNAL_PREFIX",
     "PULSES",
     "REFERENCE_INDEX",
     "STATE_INDEX",
@@ -25,6 +29,7 @@ __all__ = [
     "PhasePulses",
     "Reference",
     "State",
+    "external_name",
     "new_record",
 ]
 
@@ -78,16 +83,31 @@ class PhasePulses(NamedTuple):
     duty_c: float
 
 
-#: the strategy of a run whose torque controller is a node of the user's own
-#: (docs/ros.md#writing-your-own-controller): its commands carry no strategy index (NaN)
-EXTERNAL = "external:torque_controller"
+#: how the strategy of a run whose torque controller is a node of the user's own
+#: (docs/ros.md#writing-your-own-controller) begins: ``external:NAME`` (its commands carry no
+#: strategy index: NaN); NAME is the run's label, by default the node's name
+EXTERNAL_PREFIX = "external:"
+EXTERNAL = EXTERNAL_PREFIX + "torque_controller"
+_LABEL = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
-def strategy_name(names: tuple[str, ...], index: float) -> str:
+def external_name(label: str) -> str:
+    """``external:LABEL``, the strategy name of a controller of one's own; ConfigError for a
+    label a bag folder, a table or a file name could not hold (a ':' breaks zip, SMB and
+    Windows)."""
+    if not _LABEL.fullmatch(label):
+        raise ConfigError(
+            f"--label {label!r}: a controller's name is letters, digits and _ . + - (it names "
+            f"the controller in bags, their folder names, tables and figures)"
+        )
+    return EXTERNAL_PREFIX + label
+
+
+def strategy_name(names: tuple[str, ...], index: float, external: str = EXTERNAL) -> str:
     """The strategy of a command's ``strategy`` index in its family's ``names``; a command
-    without one (NaN) came from a torque controller of the user's own (:data:`EXTERNAL`)."""
+    without one (NaN) came from a torque controller of the user's own, named ``external``."""
     if math.isnan(index):
-        return EXTERNAL
+        return external
     return names[int(index)] if 0 <= index < len(names) else "?"
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .signals import Command, Reference, State
+from .signals import EXTERNAL, Command, Reference, State
 
 __all__ = ["RECORDS", "Trace", "TraceBuilder"]
 
@@ -32,6 +32,8 @@ class Trace:
     reference: np.ndarray
     command: np.ndarray
     strategy_names: tuple[str, ...] = ()
+    #: the name of the strategy of commands without an index: a controller of one's own
+    external: str = EXTERNAL
 
     def col(self, record: str, name: str) -> np.ndarray:
         """The column of field ``name`` of ``record`` (state, reference or command)."""

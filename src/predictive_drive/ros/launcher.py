@@ -7,13 +7,13 @@ then ends every child by PID: SIGINT (the logger closes its bag), then SIGTERM, 
 
 from __future__ import annotations
 
+import json
 import re
 import shlex
-import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,11 +22,21 @@ from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import GraphError, Interrupted
 from ..interface import CLOCK_PERIOD, LAUNCHER_NODE, NAMESPACE, NODES, TOPICS, node_name
-from ..readback import bag_status
-from .placement import CPUS_ENV, SCHED_ENV, SCHED_POLICIES, cpu_plan, ros_env
+from ..readback import BagStatus, bag_status
+from .placement import (
+    CPUS_ENV,
+    SCHED_ENV,
+    SCHED_POLICIES,
+    cpu_plan,
+    ros_env,
+    write_stop_reason,
+)
 from .processes import (
     AGAIN,
     SharedMemory,
+    command_line,
+    end_own_nodes,
+    ended_how,
     ending_with_this_process,
     is_stopped,
     isolated_domain,
@@ -67,6 +77,7 @@ def run_graph(
     sched: str = "batch",
     live_port: int = 0,
     external: Mapping[str, str | None] | None = None,
+    startup_timeout: float = 60.0,
 ) -> None:
     """Run ``sc`` through the graph and record it to ``bag``; with ``live_port``, the logger
     also serves the live view there (:class:`~predictive_drive.live.LiveView`); GraphError names the node that
@@ -77,13 +88,18 @@ def run_graph(
     ``external``: nodes of the user's own in place of ours (docs/ros.md#writing-your-own-controller),
     by name: a command line the launcher starts (with ``--ros-args``, the node's name, namespace
     and parameter files appended) and owns like its own nodes, or None for a node the user starts
-    by hand (the launcher says how, and the graph waits for it as for any node)."""
+    by hand (the launcher says how, and the graph waits ``startup_timeout`` s for it as for any
+    node)."""
     external = dict(external or {})
     if sched not in SCHED_POLICIES:
         raise GraphError(f"--sched: {sched!r} is not one of {', '.join(SCHED_POLICIES)}")
     bag = check_new_bag(bag, claimed=True).resolve()  # the caller claimed it
     source = str(Path(sc.source).resolve())
-    shared = {"duration": sc.run.duration, "peer_timeout": peer_timeout}
+    shared = {
+        "duration": sc.run.duration,
+        "peer_timeout": peer_timeout,
+        "startup_timeout": startup_timeout,
+    }
     overrides: dict[str, dict[str, Any]] = {node_name(n): dict(shared) for n in NODES}
     if "torque_controller" not in external:
         overrides[node_name("torque_controller")]["strategy"] = sc.strategy
@@ -95,6 +111,7 @@ def run_graph(
         scenario_file=source,
         engine="composed" if composed else "ros",
         live_port=live_port,
+        external=json.dumps(external) if external else "",  # for the bag's metadata
     )
     # the launcher follows /clock for progress and switches: step 0 waits for it too
     watching = bool(switches) or progress is not None
@@ -115,18 +132,19 @@ def run_graph(
         # the launcher's own node: the plant waits for its /clock subscription before step 0
         watcher = _ClockWatcher(domain, sc, switches, progress, logs) if watching else None
         modules = {"composed": "composed"} if composed else {n: f"{n}_node" for n in START_ORDER}
-        children = _Children(procs, logs)
+        children = _Children(procs, logs, own=[n for n, c in external.items() if c is not None])
         try:
             for name, module in modules.items():
                 if name in external:
                     command = external[name]
                     if command is None:
-                        _say_how_to_start(name, domain, args)
+                        _say_how_to_start(name, domain, args, startup_timeout)
                         continue
                     own = ["-r", f"__node:={name}", "-r", f"__ns:={NAMESPACE}"]
                     # a user's node cannot watch the launcher as ours do: it ends with it
+                    words = command_line(command, option=f"--external {name}=")
                     procs[name] = start_process(
-                        ending_with_this_process([*shlex.split(command), *args, *own]),
+                        ending_with_this_process([*words, *args, *own]),
                         log=logs / f"{name}.log",
                         env=env,
                     )
@@ -146,8 +164,9 @@ def run_graph(
                 file=sys.stderr,
                 flush=True,
             )
-            _watch(children, watcher, bag)
+            _watch(children, watcher, bag, sc.run.steps)
         except KeyboardInterrupt:
+            write_stop_reason(logs, "interrupted (Ctrl-C)")
             # each line is printed once further presses are counted: a press that answers it
             # is acted on, never raised in the instant before the stop takes presses over
             try:
@@ -168,11 +187,13 @@ def run_graph(
                 watcher.close()
 
 
-def _say_how_to_start(name: str, domain: int, args: list[str]) -> None:
-    """How to start a node of the user's own by hand into this run's graph."""
+def _say_how_to_start(name: str, domain: int, args: list[str], limit: float) -> None:
+    """How to start a node of the user's own by hand into this run's graph, and how long the
+    graph waits for it."""
     print(
-        f"predictive-drive: waiting for your {node_name(name)}: start it (from another shell) "
-        f"with ROS_DOMAIN_ID={domain} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and the arguments\n"
+        f"predictive-drive: waiting for your {node_name(name)} (up to {limit:g} s; "
+        f"--startup-timeout S changes it): start it (from another shell) with "
+        f"ROS_DOMAIN_ID={domain} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and the arguments\n"
         f"  {shlex.join([*args, '-r', f'__node:={name}', '-r', f'__ns:={NAMESPACE}'])}",
         file=sys.stderr,
         flush=True,
@@ -184,15 +205,22 @@ _STOPPED_LINE = re.compile(r"^stopped by (SIG\w+) at step (-?\d+)$", re.MULTILIN
 #: s a stop (SIGSTOP, a debugger) must last to be named as the reason a run failed, and how long
 #: after it ended it still counts
 STOP_BLAME = (1.0, 30.0)
+#: s the plant may take to end after a node of the user's own exited 0 (it does at once after
+#: the run's last state) before that node is said to have left before its last message
+OWN_EXIT_GRACE = 3.0
 
 
 class _Children:
     """The launcher's view of its node processes: how each ended, which were stopped by a signal
     (SIGSTOP, a debugger) and when, and the shared memory they use (see :class:`SharedMemory`)."""
 
-    def __init__(self, procs: dict[str, subprocess.Popen[bytes]], logs: Path) -> None:
+    def __init__(
+        self, procs: dict[str, subprocess.Popen[bytes]], logs: Path, own: Collection[str] = ()
+    ) -> None:
         self.procs = procs
         self.logs = logs
+        self.own = frozenset(own)  #: the user's nodes this launcher started (``--external``)
+        self._own_exit: dict[str, float] = {}  #: when each was seen to exit 0, time.monotonic()
         self.shm = SharedMemory()
         self._stopped_since: dict[str, float] = {}
         self.stops: dict[str, list[tuple[float, float]]] = {}  #: (from, to), time.monotonic()
@@ -202,6 +230,9 @@ class _Children:
     def tick(self) -> None:
         """Look at every child once (the watch loop's period)."""
         now = time.monotonic()
+        for name in self.own:
+            if self.procs[name].poll() == 0:
+                self._own_exit.setdefault(name, now)
         for name, p in self.procs.items():
             if p.poll() is None and is_stopped(p.pid):
                 self._stopped_since.setdefault(name, now)
@@ -234,6 +265,15 @@ class _Children:
         found = _STOPPED_LINE.search(path.read_text(errors="replace")) if path.exists() else None
         return (found.group(1), int(found.group(2))) if found else None
 
+    def own_exited_early(self) -> set[str]:
+        """The user's nodes that exited with status 0 while the run goes on: the plant still
+        runs :data:`OWN_EXIT_GRACE` s later (it ends right after the run's last state). The
+        contract has a node exit 0 after its last message; one that does so before is named at
+        once, not by its peers' time-out."""
+        now = time.monotonic()
+        plant_runs = self.procs["plant"].poll() is None if "plant" in self.procs else False
+        return {n for n, t in self._own_exit.items() if plant_runs and now - t > OWN_EXIT_GRACE}
+
     def ended_early(self) -> set[str]:
         """Children that ended the run before it was done: failed, killed, or stopped by a
         signal from outside (a child that finished the run exits 0 without a word)."""
@@ -244,12 +284,15 @@ class _Children:
         }
 
 
-def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path) -> None:
+def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path, planned: int) -> None:
     """Wait for the children; follow /clock for progress and timed strategy switches. When one
-    ends the run early (it failed, was killed, or was stopped from outside), stop the others
-    (the logger takes what is in flight and closes the bag), then report why the run ended and
-    the bag's state."""
+    ends the run early (it failed, was killed, was stopped from outside, or is the user's and
+    exited before its last message), say why to the recorder (:func:`~.placement.stop_reason`),
+    stop the others (the logger takes what is in flight and closes the bag), then report why
+    the run ended and the bag's state. Once this package's nodes have finished the run, a node
+    of the user's own that lingers is ended (:func:`~.processes.end_own_nodes`)."""
     procs = children.procs
+    ours = [p for n, p in procs.items() if n not in children.own]
     while True:
         if watcher is not None:
             watcher.spin(0.05)
@@ -257,87 +300,111 @@ def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path) -> Non
             time.sleep(0.05)
         children.tick()
         early = children.ended_early()
-        if early:
-            seen = time.time()
-            # a child killed outright never acknowledges what its peers sent it: they are told
-            # to finish quickly (SIGTERM). One that exited (stopped, or failed) left the graph
-            # cleanly: they finish as usual, so a recorder that was only slow gets everything
-            killed = any(p.returncode is not None and p.returncode < 0 for p in procs.values())
-            stop_processes(procs, urgent=killed)
-            raise GraphError(_failure_report(children, bag, seen, early))
-        if all(p.poll() == 0 for p in procs.values()):
+        if all(p.poll() == 0 for p in ours) and not (early - children.own):
+            lingering = {n: procs[n] for n in children.own if procs[n].poll() is None}
+            end_own_nodes(lingering, after="the run's last step")
             if watcher is not None and (errors := watcher.final_errors()):
                 raise GraphError("; ".join(errors))
             return
+        own_early = children.own_exited_early() - early
+        if early or own_early:
+            seen = time.time()
+            why, how, name = _cause(children, seen, early, own_early)
+            write_stop_reason(children.logs, why)
+            # a child killed outright never acknowledges what its peers sent it, nor does one
+            # that left before its last message: they are told to finish quickly (SIGTERM). One
+            # that failed left the graph cleanly: they finish as usual, so a recorder that was
+            # only slow gets everything
+            killed = any(p.returncode is not None and p.returncode < 0 for p in procs.values())
+            stop_processes(procs, urgent=killed or bool(own_early))
+            status = bag_status(bag)
+            if own_early and not early and status.steps >= planned:
+                return  # it had sent its last message after all: the run is whole
+            if name in own_early:  # now the step is known: what the bag holds
+                last = planned - 1 if name == "torque_controller" else planned
+                what = "command" if name == "torque_controller" else "reference"
+                why = (
+                    f"your {name} (pid {procs[name].pid}) exited with status 0 at step "
+                    f"{status.steps}, before its last {what} (step {last})"
+                )
+            cause = f"{why}; the run was stopped" + (f" ({how})" if how else "")
+            raise GraphError(_failure_report(children, status, cause, name))
 
 
-def _how(code: int | None) -> str:
-    if code is None:
-        return "is still running"
-    if code < 0:
-        return f"was killed by signal {-code} ({signal.Signals(-code).name})"
-    return f"exited with status {code}"
-
-
-def _failure_report(children: _Children, bag: Path, seen: float, early: set[str]) -> str:
-    """Why the run ended, what the node to blame said, and the bag's state.
+def _cause(
+    children: _Children, seen: float, early: set[str], own_early: set[str]
+) -> tuple[str, str, str]:
+    """Why the run ended, in one line (what the bag's outcome says too), how the node to
+    blame ended ('' where the line says it), and that node (whose log tail the report shows).
 
     The cause, in this order: a node stopped by SIGSTOP (or a debugger) long enough for its
     peers to time out; a node stopped from outside by SIGINT / SIGTERM (it closed cleanly); a
-    node killed or failed. Among failed nodes the first is the one whose error came first (a node
-    that logged an error before the launcher saw the first end, ``seen`` in wall time, counts; a
-    node that ended without a word counts as of ``seen``)."""
+    node killed or failed; a node of the user's own that exited 0 before its last message.
+    Among failed nodes the first is the one whose error came first (a node that logged an error
+    before the launcher saw the first end, ``seen`` in wall time, counts; a node that ended
+    without a word counts as of ``seen``); its own message is the headline, since it says what
+    went wrong and where (a refused command: the plant, the field and the step)."""
     procs = children.procs
     stopped = children.stopped()
     outside = {n: s for n in early if (s := children.stopped_by_signal(n)) is not None}
     ends: dict[str, float] = {}
+    said: dict[str, str] = {}
     for name, p in procs.items():
-        if p.returncode in (None, 0):
+        code = p.poll()
+        if code == 0:
             continue
         err = _first_error(children.log(name))
+        if err is not None:
+            said[name] = err[1]
         when = err[0] if err else seen
-        if name in early or when < seen:
+        if name in early or (err is not None and when < seen):
             ends[name] = when
     failed_first = min(ends, key=lambda n: ends[n]) if ends else None
     if stopped:
         name = max(stopped, key=lambda n: stopped[n])
-        cause = (
+        why = (
             f"node {name} (pid {procs[name].pid}) was stopped by a signal (SIGSTOP, or a "
             f"debugger) for {stopped[name]:.1f} s"
-            + (
-                f"; {failed_first} timed out waiting for it"
-                if failed_first not in (None, name)
-                else ""
-            )
-            + "; the run was stopped"
         )
-        blame = failed_first or name
-    elif outside:
+        if failed_first not in (None, name):
+            why += f"; {failed_first} timed out waiting for it"
+        return why, "", failed_first or name
+    if outside:
         name = min(outside, key=lambda n: outside[n][1])
         sig, step = outside[name]
-        cause = (
+        why = (
             f"node {name} (pid {procs[name].pid}) was stopped from outside by {sig} at step "
-            f"{step} (it closed cleanly); the run was stopped"
+            f"{step} (it closed cleanly)"
         )
-        blame = name
-    else:
-        assert failed_first is not None
-        name = blame = failed_first
-        cause = (
-            f"node {name} (pid {procs[name].pid}) failed first: it "
-            f"{_how(procs[name].returncode)}; the run was stopped"
-        )
+        return why, "", name
+    if failed_first is not None:
+        name = failed_first
+        pid, how = procs[name].pid, ended_how(procs[name].poll())
+        if name in said:
+            return said[name], f"{name}, pid {pid}, {how}", name
+        return f"node {name} (pid {pid}) {how}", "", name
+    name = min(own_early)
+    return (
+        f"your {name} (pid {procs[name].pid}) exited with status 0 before its last message",
+        "",
+        name,
+    )
+
+
+def _failure_report(children: _Children, status: BagStatus, cause: str, blame: str) -> str:
+    """The cause (see :func:`_cause`), the nodes that ended badly after it, the bag's state, and
+    what the node to blame said last."""
     others = ", ".join(
-        f"{n} {_how(p.returncode)}"
-        for n, p in procs.items()
-        if n != name and p.returncode not in (None, 0)
+        f"{n} {ended_how(p.returncode)}"
+        for n, p in children.procs.items()
+        if n != blame and p.returncode not in (None, 0)
     )
     return "\n".join(
         [
             cause + (f" (then: {others})" if others else ""),
-            bag_status(bag).describe() + f"; node logs in {children.logs}",
+            status.describe() + f"; node logs in {children.logs}",
             f"  {blame} said:",
-            _tail(children.log(blame)),
+            _tail(children.log(blame)) or "    (nothing)",
         ]
     )
 

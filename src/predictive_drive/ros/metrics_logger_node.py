@@ -5,6 +5,7 @@ running metrics on /diagnostics, closes the bag cleanly however the run ends."""
 from __future__ import annotations
 
 import functools
+import json
 import sys
 import time
 from collections.abc import Callable
@@ -12,17 +13,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..bag import BagWriter
+from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, decode_parameter_event
 from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice, quantity
-from ..errors import BagError
+from ..errors import BagError, ConfigError
 from ..interface import NODES, RECORD_TOPICS, RECORDED_EVERY, TOPICS, node_name
 from ..live import LiveView
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import FINISH_TIMEOUT, WatchedNode, run_main
-from .placement import launcher_pid
+from .placement import launcher_pid, stop_reason
 
 __all__ = ["TAKE_BATCH", "MetricsLoggerNode", "main"]
 
@@ -56,6 +57,11 @@ class RecordingParams:
         integer=True,
         default=0,
     )
+    external: str = choice(
+        "the nodes of the user's own, for the bag's metadata: JSON, node name to the command "
+        "line the launcher started it with (null: started by hand); their sections are theirs",
+        default="",
+    )
 
 
 class MetricsLoggerNode(WatchedNode):
@@ -69,10 +75,12 @@ class MetricsLoggerNode(WatchedNode):
         super().__init__("metrics_logger", **kw)
         run, self.params = self.load_params()
         extra = RecordingParams(**self.declare_fields(RecordingParams))
+        commands = _commands(extra.external, self._where())
         sc = load_scenario(
             extra.scenario_file or run.scenario,
             strategy=extra.strategy or None,
             duration=run.duration,
+            own=list(commands),
         )
         self.n = run.steps
         out = Path(extra.bag) if extra.bag else default_bag_dir(sc)
@@ -80,7 +88,8 @@ class MetricsLoggerNode(WatchedNode):
         try:
             # run by the project's launcher, which holds the directory's claim for the run
             claimed = launcher_pid() != 0
-            self.writer = BagWriter(out, info=bag_info(sc, extra.engine), claimed=claimed)
+            info = bag_info(sc, extra.engine, commands)
+            self.writer = BagWriter(out, info=info, claimed=claimed)
         except BaseException:
             if self.live is not None:
                 self.live.close()
@@ -97,11 +106,12 @@ class MetricsLoggerNode(WatchedNode):
             self.writer,
             ts=run.ts,
             steps=run.steps,
-            torque_limit=sc.speed_pi.torque_limit,
+            torque_limit=sc.torque_limit,
             strategy_names=strategy_names(sc.family),
             record_tools=False,
             publish=self._publish_tool,
             live=None if self.live is None else self.live.offer,
+            external=sc.own_name,
         )
         ticks = self.n // tool_every(run.ts) + 1
         #: messages taken, by topic; written (and counted in the bag) in batches
@@ -193,12 +203,15 @@ class MetricsLoggerNode(WatchedNode):
         recording goes; close the bag when every message has come."""
         taken, self._taken = self._taken, []
         self._note_progress()
+        left_out = dict(self.rec.left_out)
         try:
             self.rec.take(taken)
             self.rec.flush()
         except BagError as e:
             self._cannot_write(e)
             return
+        if self.rec.left_out != left_out:
+            self._left_out(left_out)
         through = self.last_step
         if not self._draining and (through >= self._said + RECORDED_EVERY or through >= self.n - 1):
             self._said = through
@@ -206,6 +219,18 @@ class MetricsLoggerNode(WatchedNode):
             progress = (float(through), through * self._ts, float(self.writer.message_count))
             self.pub_recorded.publish(CODECS["recorded"].encode(progress))
         self._maybe_done()
+
+    def _left_out(self, before: dict[str, int]) -> None:
+        """Messages the recorder left out (see :meth:`RunRecorder._screen`): not counted among
+        those the run needs; the first one said in the log."""
+        for key, n in self.rec.left_out.items():
+            self._counts[key] -= n - before.get(key, 0)
+            self._left += n - before.get(key, 0)
+        if not before:
+            self.get_logger().warning(
+                f"left out of the bag: {self.rec.left_out_first} (the plant refuses it; every "
+                f"valid step is kept)"
+            )
 
     def _note_progress(self) -> None:
         """Messages came since the last batch: the last one came now (for :meth:`finish`); the
@@ -290,8 +315,12 @@ class MetricsLoggerNode(WatchedNode):
         if self.live is not None:
             self.live.close()
         try:
+            # a run that did not complete ends with why, as this node or its launcher saw it
+            why = ""
+            if self._counts != self._need:
+                why = self.failure or stop_reason(self.writer.directory / LOGS_DIR)
             try:
-                self.rec.finish()
+                self.rec.finish(why)
             finally:
                 self.writer.close()
         except BagError as e:
@@ -300,6 +329,19 @@ class MetricsLoggerNode(WatchedNode):
         self.get_logger().info(
             f"bag closed: {self.writer.directory} ({self.writer.message_count} messages)"
         )
+
+
+def _commands(text: str, where: str) -> dict[str, str | None]:
+    """The ``external`` parameter: node → command line (None: started by hand)."""
+    try:
+        commands = json.loads(text or "{}")
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"{where}: external: not JSON ({e})") from None
+    if not isinstance(commands, dict) or not all(
+        isinstance(c, str) or c is None for c in commands.values()
+    ):
+        raise ConfigError(f"{where}: external: expected {{node: command or null}}, got {text!r}")
+    return commands
 
 
 def main(args: list[str] | None = None) -> int:

@@ -287,6 +287,11 @@ class WatchedNode(DriveNode):
     #: the nodes further along the loop from a controller wait longer: the plant (waits on the
     #: torque controller) 0.25 s, the speed PI (on the plant) 0.5 s, the recorder (on all) 1 s
     patience: float = 0.0
+    #: s this node waits beyond the start-up timeout before it fails, until the graph has
+    #: started: the plant judges start-up (it names the peers it still waits for, or the silent
+    #: controller of command 0), so the others, which wait on it, give it this long besides —
+    #: enough for the skew of the processes' starts
+    start_patience: float = 10.0
 
     def __init__(self, name: str, **kw: Any) -> None:
         super().__init__(name, **kw)
@@ -315,7 +320,8 @@ class WatchedNode(DriveNode):
         if self.finished or self.failure:
             return
         limit = self.peer_timeout if self._started else self.startup_timeout
-        if time.monotonic() - self._last_progress > limit + self.patience * self._started:
+        patience = self.patience if self._started else self.start_patience
+        if time.monotonic() - self._last_progress > limit + patience:
             self.fail(
                 f"{self.get_fully_qualified_name()}: {self.stalled_message()} within {limit} s"
             )

@@ -20,11 +20,14 @@ __all__ = [
     "LAUNCHER_ENV",
     "SCHED_ENV",
     "SCHED_POLICIES",
+    "STOP_REASON_FILE",
     "apply_placement",
     "cpu_plan",
     "launcher_pid",
     "ros_env",
     "ros_log_dir",
+    "stop_reason",
+    "write_stop_reason",
 ]
 
 #: set by the launcher to its PID for its children: a node whose parent is no longer that process
@@ -76,6 +79,24 @@ def ros_env(domain: int, *, log_dir: Path | None = None) -> dict[str, str]:
         prefixes.insert(0, sys.prefix)
     env["AMENT_PREFIX_PATH"] = os.pathsep.join(prefixes)
     return env
+
+
+#: the file in a run's log folder where the launcher writes why it stopped the run, before it
+#: stops the nodes: the recorder puts it in the bag's outcome (it cannot see a peer's exit)
+STOP_REASON_FILE = "stop_reason.txt"
+
+
+def write_stop_reason(logs: Path, reason: str) -> None:
+    """The launcher: the run is stopped for ``reason`` (one line)."""
+    (logs / STOP_REASON_FILE).write_text(reason.splitlines()[0] if reason else "")
+
+
+def stop_reason(logs: Path) -> str:
+    """A node: why its launcher stopped the run ('' when it did not say so)."""
+    try:
+        return (logs / STOP_REASON_FILE).read_text().strip()
+    except OSError:
+        return ""
 
 
 def launcher_pid() -> int:

@@ -19,11 +19,10 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 
-from ..codec import CODECS, labelled
-from ..core.commands import CommandError, command_from
+from ..codec import CODECS, command_for_step
+from ..core.commands import CommandError
 from ..core.runner import build_plant
-from ..core.signals import Command, State
-from ..errors import BagError
+from ..core.signals import State
 from ..interface import LAUNCHER_NODE, NAMESPACE, RECORDING_WINDOW, TOPICS, node_name
 from ..recording import tool_every, tool_messages
 from .node_base import WatchedNode, run_main
@@ -31,13 +30,14 @@ from .transport import qos
 
 __all__ = ["PlantNode", "main"]
 
-_STATE, _CMD, _RECORDED = CODECS["state"], CODECS["command"], CODECS["recorded"]
+_STATE, _RECORDED = CODECS["state"], CODECS["recorded"]
 
 
 class PlantNode(WatchedNode):
     """Motor + inverter + load. Step 0 goes out once every peer listens."""
 
     patience = 0.25  #: see WatchedNode.patience
+    start_patience = 0.0
 
     section = "plant"
 
@@ -85,23 +85,37 @@ class PlantNode(WatchedNode):
         self.published = -1  #: the last state published
 
     def _not_listening(self) -> list[str]:
-        """Who step 0 still waits for: speed_pi, torque_controller, metrics_logger (and the
-        launcher when ``await_launcher``)."""
-        missing = []
+        """Who step 0 still waits for, by node, and what of each: speed_pi, torque_controller,
+        metrics_logger (and the launcher when ``await_launcher``)."""
+        waits: dict[str, list[str]] = {}
+
+        def lacks(node: str, what: str) -> None:
+            waits.setdefault(node_name(node), []).append(what)
+
+        state, clock = TOPICS["state"].name, TOPICS["clock"].name
         if self.pub_state.get_subscription_count() < 3:
-            missing.append(f"3 subscribers of {TOPICS['state'].name}")
+            there = self._nodes_on(self.get_subscriptions_info_by_topic(state))
+            absent = [
+                n for n in ("speed_pi", "torque_controller", "metrics_logger") if n not in there
+            ]
+            for n in absent:
+                lacks(n, f"no {state} subscription")
+            if not absent:  # nodes of other names (not started as the graph's): by count
+                waits[f"3 subscribers of {state}"] = []
         if self.pub_joint.get_subscription_count() < 1:
-            missing.append(f"the logger's {TOPICS['joint_states'].name} subscription")
-        if self.await_launcher and not any(
-            (i.node_namespace, i.node_name) == (NAMESPACE, LAUNCHER_NODE)
-            for i in self.get_subscriptions_info_by_topic(TOPICS["clock"].name)
+            lacks("metrics_logger", f"no {TOPICS['joint_states'].name} subscription")
+        if self.await_launcher and LAUNCHER_NODE not in self._nodes_on(
+            self.get_subscriptions_info_by_topic(clock)
         ):
-            missing.append(
-                f"the launcher's {TOPICS['clock'].name} subscription ({node_name(LAUNCHER_NODE)})"
-            )
+            lacks(LAUNCHER_NODE, f"no {clock} subscription")
         if self.count_publishers(TOPICS["command"].name) < 1:
-            missing.append(f"a {TOPICS['command'].name} publisher")
-        return missing
+            lacks("torque_controller", f"no {TOPICS['command'].name} publisher")
+        return [f"{who} ({', '.join(what)})" if what else who for who, what in waits.items()]
+
+    @staticmethod
+    def _nodes_on(infos: list[Any]) -> set[str]:
+        """The names of this graph's nodes (namespace /drive) among a topic's endpoints."""
+        return {i.node_name for i in infos if i.node_namespace == NAMESPACE}
 
     def check(self) -> None:
         if not self.k_started and not self._not_listening():
@@ -209,27 +223,17 @@ class PlantNode(WatchedNode):
     def on_command(self, data: bytes) -> None:
         """Command k in whichever form the controller gives it (built-in: the fast path); a
         command that cannot be applied ends the run, naming the field and the step."""
-        values = _CMD.exact(data)
+        plant = self.plant
         try:
-            if values is None:
-                cmd = command_from(labelled(data), u_dc=self.plant.u_dc)
-            else:
-                cmd = Command(*values)
-            if cmd.k != self.plant.k:
-                raise CommandError(
-                    f"step {self.plant.k}: field 'k' = {cmd.k:g}: the command for another step "
-                    f"(the plant waits for step {self.plant.k})",
-                    field="k",
-                    k=cmd.k,
-                )
+            cmd = command_for_step(data, k=plant.k, t=plant.k * plant.ts, u_dc=self._u_dc)
         except CommandError as e:
             self._refuse(str(e))
             return
-        except BagError as e:
-            self._refuse(f"step {self.plant.k}: {e}")
-            return
         self.progressed()
-        self._offer(self.plant.step(cmd))
+        self._offer(plant.step(cmd))
+
+    def _u_dc(self) -> float:
+        return float(self.plant.u_dc)
 
     def _refuse(self, why: str) -> None:
         """A command the plant cannot apply ends the run (docs/ros.md#writing-your-own-controller)."""

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import fcntl
 import os
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -22,10 +24,14 @@ from typing import Any
 
 import yaml
 
-from ..errors import GraphError
+from ..errors import ConfigError, GraphError
 
 __all__ = [
     "AGAIN",
+    "OWN_NODE_GRACE",
+    "command_line",
+    "end_own_nodes",
+    "ended_how",
     "STOP_GRACE",
     "TERM_GRACE",
     "SharedMemory",
@@ -135,6 +141,48 @@ def stop_processes(
                     break  # pressed again while they finish quickly: leave them to it
                 print(AGAIN, file=sys.stderr, flush=True)
     return [n for n, p in procs.items() if p.poll() is None]
+
+
+def ended_how(code: int | None) -> str:
+    """How a child ended, in words: by its exit status, or by the signal that killed it."""
+    if code is None:
+        return "is still running"
+    if code < 0:
+        return f"was killed by signal {-code} ({signal.Signals(-code).name})"
+    return f"exited with status {code}"
+
+
+#: s a user's node may take to exit on its own once its part is over (after its last message),
+#: and then to end once sent SIGTERM, before SIGKILL
+OWN_NODE_GRACE = 5.0
+
+
+def end_own_nodes(procs: Mapping[str, subprocess.Popen[bytes]], *, after: str) -> None:
+    """End the user's nodes ``procs`` still running once their part is over (``after``: what
+    is over, e.g. "the run's last step"): each may exit on its own within
+    :data:`OWN_NODE_GRACE` s; then SIGTERM; then, :data:`OWN_NODE_GRACE` s later, SIGKILL,
+    each said on stderr. The contract asks a node to exit after its last message; one that does
+    not must not keep the command waiting."""
+    deadline = time.monotonic() + OWN_NODE_GRACE
+    while time.monotonic() < deadline and any(p.poll() is None for p in procs.values()):
+        time.sleep(0.05)
+    for sig, then in ((signal.SIGTERM, "ending it"), (signal.SIGKILL, "killing it")):
+        alive = {n: p for n, p in procs.items() if p.poll() is None}
+        for name, p in alive.items():
+            waited = "" if sig == signal.SIGTERM else "; it ignored SIGTERM"
+            print(
+                f"predictive-drive: your {name} (pid {p.pid}) has not exited "
+                f"{OWN_NODE_GRACE:g} s after {after}{waited}: {then} ({sig.name})",
+                file=sys.stderr,
+                flush=True,
+            )
+            try:
+                os.kill(p.pid, sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + OWN_NODE_GRACE
+        while time.monotonic() < deadline and any(p.poll() is None for p in alive.values()):
+            time.sleep(0.05)
 
 
 def _pressed_since(presses: list[int], before: int) -> Callable[[], bool]:
@@ -267,21 +315,72 @@ def parameter_args(
     return ["--ros-args", "--params-file", str(scenario_file), "--params-file", str(path)]
 
 
-#: run a command so that it ends (SIGTERM) when the process that started it dies, even by
-#: SIGKILL (Linux's PR_SET_PDEATHSIG survives exec): what a user's own node gets, which cannot
-#: watch the launcher as this package's nodes do. ``python -c THIS PARENT_PID COMMAND...``
-_END_WITH_PARENT = (
-    "import ctypes, os, signal, sys; "
-    "ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM); "  # 1: PR_SET_PDEATHSIG
-    "os.getppid() == int(sys.argv[1]) or os._exit(1); "  # the parent died already
-    "os.execvp(sys.argv[2], sys.argv[2:])"
-)
+#: run a command so that it ends when the process that started it dies, even by SIGKILL: what a
+#: user's own node gets, which cannot watch the launcher as this package's nodes do. SIGTERM at
+#: once (Linux's PR_SET_PDEATHSIG survives exec), and SIGKILL GRACE s later from a watchdog
+#: forked before the exec (a child of the node: it goes when the node does) for a node that
+#: ignores SIGTERM. ``python -c THIS PARENT_PID GRACE COMMAND...``
+_END_WITH_PARENT = """
+import ctypes, os, signal, sys, time
+launcher, grace = int(sys.argv[1]), float(sys.argv[2])
+def started(pid):  # None: gone or a zombie
+    try:
+        fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return None if fields[0] == "Z" else fields[19]
+ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # 1: PR_SET_PDEATHSIG
+born = started(launcher)
+if os.getppid() != launcher or born is None:
+    os._exit(1)  # the launcher died already
+node = os.getpid()
+if os.fork() == 0:
+    while os.getppid() == node and started(launcher) == born:
+        time.sleep(0.2)
+    deadline = time.monotonic() + grace
+    while os.getppid() == node and time.monotonic() < deadline:
+        time.sleep(0.1)
+    if os.getppid() == node:
+        os.kill(node, signal.SIGKILL)
+    os._exit(0)
+os.execvp(sys.argv[3], sys.argv[3:])
+"""
 
 
 def ending_with_this_process(command: list[str]) -> list[str]:
-    """``command`` wrapped so that it ends when this process dies (see :data:`_END_WITH_PARENT`);
-    the same PID runs the command once it starts."""
-    return [sys.executable, "-c", _END_WITH_PARENT, str(os.getpid()), *command]
+    """``command`` wrapped so that it ends when this process dies (see :data:`_END_WITH_PARENT`:
+    SIGTERM, and SIGKILL :data:`OWN_NODE_GRACE` s later); the same PID runs the command once it
+    starts."""
+    return [sys.executable, "-c", _END_WITH_PARENT, str(os.getpid()), str(OWN_NODE_GRACE), *command]
+
+
+def command_line(text: str, *, option: str) -> list[str]:
+    """A user's command line as the launcher will start it (POSIX shell words, no shell): its
+    words, once its program is found and executable; ConfigError naming ``option`` (what the
+    user wrote it in, e.g. ``--external torque_controller=...``) and why otherwise. Checked
+    before anything starts, so a typo costs no run."""
+    try:
+        words = shlex.split(text)
+    except ValueError as e:  # "No closing quotation", "No escaped character"
+        raise ConfigError(
+            f"{option}{text}: does not parse as a command line ({str(e).lower()})"
+        ) from None
+    if not words:
+        raise ConfigError(f"{option}{text}: an empty command")
+    program = words[0]
+    if "/" not in program:
+        why = "" if shutil.which(program) else "is not found on PATH"
+    elif not Path(program).exists():
+        why = "does not exist"
+    elif Path(program).is_dir():
+        why = "is a directory, not a program"
+    elif not os.access(program, os.X_OK):
+        why = "is not executable (chmod +x it, or start it with its interpreter)"
+    else:
+        why = ""
+    if why:
+        raise ConfigError(f"{option}{text}: {program!r} {why}")
+    return words
 
 
 def start_process(

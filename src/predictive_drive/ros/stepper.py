@@ -15,26 +15,39 @@ differ — read its agreement as "what it would have decided here", not as a clo
 from __future__ import annotations
 
 import math
-import shlex
 import subprocess
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..bag import LOGS_DIR, BagWriter
-from ..codec import CODECS, decode_command, stamp_ns
+from ..codec import CODECS, command_for_step, stamp_ns
+from ..core.commands import CommandError
 from ..core.control import strategy_names
-from ..core.signals import COMMAND_INDEX, EXTERNAL, PULSES, STATE_INDEX, strategy_name
-from ..errors import GraphError, Interrupted
-from ..interface import NAMESPACE, STEPPER_NODE, node_name
+from ..core.signals import (
+    COMMAND_INDEX,
+    EXTERNAL,
+    EXTERNAL_PREFIX,
+    PULSES,
+    STATE_INDEX,
+    external_name,
+    strategy_name,
+)
+from ..errors import ConfigError, GraphError, Interrupted
+from ..interface import NAMESPACE, STEPPER_NODE, TOPICS, node_name
 from ..readback import read_bag
 from ..recording import bag_info, scenario_of, tool_every, tool_messages
 from .placement import ros_env
 from .processes import (
     SharedMemory,
+    command_line,
+    end_own_nodes,
+    ended_how,
     ending_with_this_process,
     isolated_domain,
     node_command,
@@ -76,13 +89,18 @@ class StepResult:
 
 
 def replay_into(
-    source: str | Path, out: Path, *, strategy: str | None = None, command: str | None = None
+    source: str | Path,
+    out: Path,
+    *,
+    strategy: str | None = None,
+    command: str | None = None,
+    label: str | None = None,
 ) -> StepResult:
     """Feed the recording ``source`` into a torque controller node step by step and record the
     result to ``out`` as it goes (the caller holds ``out``'s claim). ``strategy``: the one
     strategy to replay into (default: the recording's own, switched at the recorded steps);
     ``command``: a controller node of the user's own to start instead of ours (its command line;
-    ``--ros-args``, its name, namespace and parameter files appended).
+    ``--ros-args``, its name, namespace and parameter files appended), named ``external:label``.
     Interrupted (KeyboardInterrupt), the new bag is closed with every step replayed so far and
     :class:`~predictive_drive.errors.Interrupted` says what it holds."""
     from rclpy.parameter import Parameter
@@ -94,10 +112,16 @@ def replay_into(
     names = strategy_names(sc.family)
     if strategy is not None and strategy not in names:
         raise GraphError(f"--strategy {strategy!r}: valid for {sc.family}: {', '.join(names)}")
-    recorded = [strategy_name(names, i) for i in trace.col("command", "strategy")]
+    recorded = [strategy_name(names, i, trace.external) for i in trace.col("command", "strategy")]
     plan = [strategy] * n if strategy is not None else recorded
-    if command is not None:
-        plan = [EXTERNAL] * n  # the user's node: no strategy to set or switch
+    if command is not None:  # the user's node: no strategy to set or switch
+        plan = [external_name(label) if label is not None else EXTERNAL] * n
+    elif strategy is None and recorded and recorded[0].startswith(EXTERNAL_PREFIX):
+        raise ConfigError(
+            f"{source}: its torque controller was your own ({recorded[0]}): replay it into "
+            f"yours (--into torque_controller=COMMAND) or into one of ours (--strategy: "
+            f"{', '.join(names)})"
+        )
     out = out.resolve()
     logs = out / LOGS_DIR
     logs.mkdir(parents=True, exist_ok=True)
@@ -117,9 +141,12 @@ def replay_into(
         start = [*node_command("torque_controller_node"), *args]
     else:
         own = ["-r", "__node:=torque_controller", "-r", f"__ns:={NAMESPACE}"]
-        start = ending_with_this_process([*shlex.split(command), *args, *own])
+        start = ending_with_this_process(
+            [*command_line(command, option="--into torque_controller="), *args, *own]
+        )
+    started = None if command is None else {"torque_controller": command}
     bag_meta = {
-        **bag_info(sc.with_strategy(plan[0] if strategy is None else strategy), "replay"),
+        **bag_info(sc.with_strategy(plan[0]), "replay", started),
         "replay_of": str(Path(source).resolve()),
         "replayed_engine": info.info.get("engine", ""),
     }
@@ -143,18 +170,16 @@ def replay_into(
         procs = {"torque_controller": proc}
         recorder = _Recorder(writer, tool_every(sc.ts))
         try:
-
-            def matched() -> bool:
-                return bool(
-                    sub.get_publisher_count() > 0
-                    and pub_state.get_subscription_count() > 0
-                    and pub_ref.get_subscription_count() > 0
-                )
-
-            _wait(ex, matched, 60.0, proc, logs, "the controller never matched the topics")
+            _wait(ex, _matched(sub, pub_state, pub_ref), 60.0, proc, logs)
             shm.sample([proc.pid])
             if command is None and strategy is None and len(set(plan)) > 1:
-                _wait(ex, client.services_are_ready, 60.0, proc, logs, "no parameter services")
+                _wait(
+                    ex,
+                    _until(client.services_are_ready, "its parameter services"),
+                    60.0,
+                    proc,
+                    logs,
+                )
             state, ref = CODECS["state"], CODECS["reference"]
             in_force = plan[0]
             t0 = time.perf_counter()
@@ -164,18 +189,25 @@ def replay_into(
                     fut = client.set_parameters(
                         [Parameter("strategy", Parameter.Type.STRING, in_force)]
                     )
-                    _wait(ex, fut.done, COMMAND_TIMEOUT, proc, logs, f"switch at step {k}")
+                    answer = _until(fut.done, f"an answer to the strategy switch at step {k}")
+                    _wait(ex, answer, COMMAND_TIMEOUT, proc, logs)
                 row, reference = tuple(trace.state[k]), tuple(trace.reference[k])
                 pub_ref.publish(ref.encode(reference))
                 pub_state.publish(state.encode(row))
                 recorder.inputs(row, reference)
                 if k < n:
-                    _wait(ex, lambda k=k: len(got) > k, COMMAND_TIMEOUT, proc, logs, f"step {k}")
+                    answer = _until(
+                        partial(_holds, got, k), f"{TOPICS['command'].name} for step {k}"
+                    )
+                    _wait(ex, answer, COMMAND_TIMEOUT, proc, logs)
                     u_dc = float(row[U_DC])  # a voltage reference is modulated from it
-                    commands.append(decode_command(got[k], lambda: u_dc))  # noqa: B023
+                    commands.append(_applied(got[k], k, row[1], u_dc, out))
                     recorder.command(commands[-1])
             wall = time.perf_counter() - t0
-            proc.wait(timeout=COMMAND_TIMEOUT + 30)
+            if command is not None:  # the contract: it exits after its last command
+                end_own_nodes(procs, after="its last command")
+            else:
+                proc.wait(timeout=COMMAND_TIMEOUT + 30)
         except KeyboardInterrupt:
             raise Interrupted(
                 f"interrupted: the new bag {out} holds the first {len(commands)} of {n} steps "
@@ -197,7 +229,7 @@ def replay_into(
     return StepResult(
         bag=out,
         steps=n,
-        strategy=EXTERNAL if command is not None else strategy or "as recorded",
+        strategy=plan[0] if command is not None else strategy or "as recorded",
         vector_agreement=sum(same_vector) / n if picked else math.nan,
         pulse_agreement=sum(same_pulses) / n,
         compute_us_per_step=reported[len(reported) // 2] / 1e3 if reported else math.nan,
@@ -241,14 +273,61 @@ class _Recorder:
             self.writer.write(key, t_ns, data)
 
 
+def _matched(sub: Any, pub_state: Any, pub_ref: Any) -> Callable[[], str]:
+    """What the controller node has not matched yet ('' once it has all)."""
+
+    def missing() -> str:
+        out = []
+        if sub.get_publisher_count() < 1:
+            out.append(f"a {TOPICS['command'].name} publisher")
+        for pub in (pub_state, pub_ref):
+            if pub.get_subscription_count() < 1:
+                out.append(f"a {pub.topic_name} subscription")
+        return " and ".join(out)
+
+    return missing
+
+
+def _until(ready: Callable[[], bool], what: str) -> Callable[[], str]:
+    """``what`` is awaited until ``ready()`` (see :func:`_wait`)."""
+    return lambda: "" if ready() else what
+
+
+def _holds(items: list[bytes], k: int) -> bool:
+    return len(items) > k
+
+
+def _applied(data: bytes, k: int, t: float, u_dc: float, out: Path) -> tuple[float, ...]:
+    """Command k as the plant would apply it (:func:`~..codec.command_for_step`), or a
+    GraphError naming the field and the step, as the plant refuses it."""
+    try:
+        return tuple(command_for_step(data, k=k, t=t, u_dc=lambda: u_dc))
+    except CommandError as e:
+        raise GraphError(
+            f"{node_name(STEPPER_NODE)}: refused {TOPICS['command'].name} from "
+            f"{node_name('torque_controller')}: {e} (as the plant would); the new bag {out} "
+            f"holds the {k} steps before it"
+        ) from None
+
+
 def _wait(
-    ex: Any, ready: Any, timeout: float, proc: subprocess.Popen[bytes], logs: Path, what: str
+    ex: Any, waiting: Callable[[], str], timeout: float, proc: subprocess.Popen[bytes], logs: Path
 ) -> None:
+    """Spin until ``waiting()`` says nothing is awaited any more (''); GraphError naming what
+    did not come, from whom, when the node ends or ``timeout`` s pass first."""
+    node = node_name("torque_controller")
+    log = logs / "torque_controller.log"
     deadline = time.monotonic() + timeout
-    while not ready():
+    while what := waiting():
         if proc.poll() is not None:
-            tail = (logs / "torque_controller.log").read_text(errors="replace")[-1500:]
-            raise GraphError(f"the torque controller ended ({what}):\n{tail}")
+            tail = log.read_text(errors="replace")[-1500:]
+            raise GraphError(
+                f"{node} (pid {proc.pid}) {ended_how(proc.returncode)} while the replay waited "
+                f"for {what}; its log {log} ends:\n{tail}"
+            )
         if time.monotonic() > deadline:
-            raise GraphError(f"replay into the torque controller: {what} within {timeout} s")
+            raise GraphError(
+                f"no {what} from {node} within {timeout:g} s: it runs (pid {proc.pid}) but never "
+                f"answered; its log: {log}"
+            )
         ex.spin_once(timeout_sec=0.01)
