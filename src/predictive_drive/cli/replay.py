@@ -15,7 +15,7 @@ HELP = (
 )
 #: the options of playing onto topics, and of replaying into a node
 PLAY_OPTIONS = ("rate", "start_offset", "playback_duration", "loop", "topics", "exclude_topics",
-                "remap", "clock", "start_paused")  # fmt: skip
+                "remap", "clock", "start_paused", "wait_for")  # fmt: skip
 INTO_OPTIONS = ("strategy", "out", "label")
 
 
@@ -46,6 +46,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                       "the recorded /clock")  # fmt: skip
     play.add_argument("--start-paused", action="store_true",
                       help="start paused (`predictive-drive param set player paused false`)")  # fmt: skip
+    play.add_argument("--wait-for", type=int, metavar="N",
+                      help="before the first message, wait until each played topic has N "
+                      "subscribers (default: a discovery settle of 1 s or more, until the "
+                      "subscribers already running have matched)")  # fmt: skip
     into = p.add_argument_group("replaying into a node (--into)")
     into.add_argument(
         "--into",
@@ -81,6 +85,7 @@ def main(a: argparse.Namespace) -> int:
         "remap": dict(a.remap or ()),
         "clock_hz": a.clock,
         "start_paused": a.start_paused,
+        "wait_for": a.wait_for,
     }
     d = replay(a.bag, **{k: v for k, v in options.items() if v is not None})
     if a.json:

@@ -40,6 +40,11 @@ SERVICE_PERIOD = 0.05
 BEHIND = 0.1
 #: s the player waits, at the end, for reliable readers to acknowledge what it published
 ACK_TIMEOUT = 10.0
+#: the discovery settle before the first message (without ``--wait-for``): at least the first s
+#: — Fast DDS matched a subscriber already running within 0 to 2.3 s of a new publisher's
+#: creation here (8 tries, on localhost) — and until the played topics' matched subscribers held
+#: still for the second s, at most the third
+SETTLE = (3.0, 0.5, 6.0)
 
 
 @dataclass(frozen=True)
@@ -58,10 +63,15 @@ class PlayOptions:
     remap: dict[str, str] = field(default_factory=dict)
     clock_hz: float | None = None
     start_paused: bool = False
+    #: before the first message, wait until every played topic has this many matched
+    #: subscribers (None: the discovery settle, :data:`SETTLE`)
+    wait_for: int | None = None
 
     def __post_init__(self) -> None:
         if not self.rate > 0:
             raise ConfigError(f"--rate must be > 0, got {self.rate}")
+        if self.wait_for is not None and self.wait_for < 1:
+            raise ConfigError(f"--wait-for must be at least 1 subscriber, got {self.wait_for}")
         if self.start_offset < 0:
             raise ConfigError(f"--start-offset must be >= 0 s, got {self.start_offset}")
         if self.playback_duration is not None and not self.playback_duration > 0:
@@ -206,6 +216,9 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
     interrupted = False
     done_ns = span_ns = 0  #: recorded time played: the passes before this one, and all of it
     try:
+        _matched(node, ex, options.wait_for)
+        clock = _PlayClock(node.rate, node.paused)  # the pace starts with the first message
+        next_service = next_clock = time.perf_counter()
         while True:
             passes += 1
             msgs = _window(bag, play_topics, options, first)
@@ -269,6 +282,41 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
         passes=passes,
         interrupted=interrupted,
     )
+
+
+def _matched(node: PlayerNode, ex: Any, wait_for: int | None) -> None:
+    """Before the first message: the subscribers of the played topics matched. A volatile
+    message sent before a subscriber matched is lost to it, and discovering one that runs
+    takes up to a few seconds (one started 3 s before a replay at rate 0.05 missed the first 233
+    states of 6,001). With ``wait_for``, until every played topic has that many
+    (said on stderr; Ctrl-C gives up); else the discovery settle (:data:`SETTLE`)."""
+    pubs = list(node.pubs.values())
+
+    def counts() -> list[int]:
+        return [p.get_subscription_count() for p in pubs]
+
+    start = time.perf_counter()
+    if wait_for is not None:
+        said = False
+        while min(counts(), default=wait_for) < wait_for:
+            if not said and time.perf_counter() - start > 1.0:
+                said = True
+                print(
+                    f"predictive-drive: replay waits for {wait_for} subscriber(s) of each played "
+                    f"topic (now {min(counts())}; Ctrl-C gives up)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+            ex.spin_once(timeout_sec=SERVICE_PERIOD)
+        return
+    least, still, most = SETTLE
+    seen, since = counts(), start
+    while (now := time.perf_counter()) - start < most:
+        if now - start >= least and now - since >= still:
+            return
+        ex.spin_once(timeout_sec=SERVICE_PERIOD)
+        if (c := counts()) != seen:
+            seen, since = c, time.perf_counter()
 
 
 def _window(
