@@ -21,10 +21,14 @@ from __future__ import annotations
 import math
 import sys
 import time
+from array import array
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 #: the command's labelled fields: the switching state and three optional diagnostics
@@ -39,9 +43,24 @@ LOCKSTEP = QoSProfile(
 )
 
 
-def fields(msg: Float64MultiArray) -> dict[str, float]:
-    """A labelled Float64MultiArray's values by label (dim[0].label, comma separated)."""
-    return dict(zip(msg.layout.dim[0].label.split(","), msg.data))
+class Fields:
+    """Values of a labelled Float64MultiArray by name (``layout.dim[0].label``, comma separated).
+    A publisher's labels do not change from one message to the next, so they are parsed once
+    per layout seen; each message then costs a few index lookups, not a dict of every field."""
+
+    def __init__(self, *names: str) -> None:
+        self.names = names
+        self._label = ""
+        self._at: tuple[int, ...] = ()
+
+    def __call__(self, msg: Float64MultiArray) -> tuple[float, ...]:
+        label = msg.layout.dim[0].label
+        if label != self._label:
+            labels = label.split(",")
+            self._at = tuple(labels.index(name) for name in self.names)
+            self._label = label
+        data = msg.data
+        return tuple(data[i] for i in self._at)
 
 
 def voltage(s: tuple[int, int, int], u_dc: float) -> complex:
@@ -115,59 +134,70 @@ class DTCNode(Node):
             f"switching-table DTC: torque band {self.law.torque_band:g} N·m, flux band "
             f"{self.law.flux_band:g} Wb, {self.steps} steps"
         )
-        self.states: dict[int, dict[str, float]] = {}
-        self.refs: dict[int, dict[str, float]] = {}
+        self.states: dict[int, tuple[float, ...]] = {}
+        self.refs: dict[int, tuple[float, ...]] = {}
+        self.state_fields = Fields("k", "t", "i_alpha", "i_beta", "u_dc")
+        self.ref_fields = Fields("k", "torque_ref", "flux_ref")
         self.k = 0
-        self.done = False
+        self.done = Future()  #: set after the last command: the spin loop ends then
         self.pub = self.create_publisher(Float64MultiArray, "command", LOCKSTEP)
+        # one message, its layout built once; each step sets its data (an array of doubles:
+        # rclpy takes it as it is, where a list is checked value by value)
+        self.command = Float64MultiArray()
+        n = len(COMMAND_FIELDS)
+        self.command.layout.dim = [
+            MultiArrayDimension(label=",".join(COMMAND_FIELDS), size=n, stride=n)
+        ]
         self.create_subscription(Float64MultiArray, "state", self.on_state, LOCKSTEP)
         self.create_subscription(Float64MultiArray, "torque_reference", self.on_reference, LOCKSTEP)
 
     def on_state(self, msg: Float64MultiArray) -> None:
-        s = fields(msg)
-        self.states[int(s["k"])] = s
+        s = self.state_fields(msg)
+        self.states[int(s[0])] = s
         self.try_step()
 
     def on_reference(self, msg: Float64MultiArray) -> None:
-        r = fields(msg)
-        self.refs[int(r["k"])] = r
+        r = self.ref_fields(msg)
+        self.refs[int(r[0])] = r
         self.try_step()
 
     def try_step(self) -> None:
         k = self.k
-        if k not in self.states or k not in self.refs or self.done:
+        if k not in self.states or k not in self.refs or self.done.done():
             return
-        state, ref = self.states.pop(k), self.refs.pop(k)
+        (_, t, i_alpha, i_beta, u_dc), (_, torque_ref, flux_ref) = (
+            self.states.pop(k),
+            self.refs.pop(k),
+        )
         if k == 0:  # command 0 goes out once its readers listen (the plant and the recorder)
             deadline = time.monotonic() + 30.0
             while self.pub.get_subscription_count() < self.readers and time.monotonic() < deadline:
                 time.sleep(0.005)
-        s, torque, flux, angle = self.law.step(
-            complex(state["i_alpha"], state["i_beta"]),
-            state["u_dc"],
-            ref["torque_ref"],
-            ref["flux_ref"],
-        )
-        values = (float(k), state["t"], *map(float, s), torque, flux, angle)
-        msg = Float64MultiArray()
-        n = len(COMMAND_FIELDS)
-        msg.layout.dim = [MultiArrayDimension(label=",".join(COMMAND_FIELDS), size=n, stride=n)]
-        msg.data = list(values)
-        self.pub.publish(msg)
+        s, torque, flux, angle = self.law.step(complex(i_alpha, i_beta), u_dc, torque_ref, flux_ref)
+        # t: the state's own, to the bit (the plant checks it)
+        self.command.data = array("d", (k, t, *s, torque, flux, angle))
+        self.pub.publish(self.command)
         self.k = k + 1
-        self.done = self.k >= self.steps
+        if self.k >= self.steps:  # the last command: the last state is not answered
+            self.done.set_result(True)
 
 
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     node = DTCNode()
+    # the events executor runs the callbacks in C++ until the future is done or 0.1 s pass
+    # (about three times the default executor's pace per message); always with a finite
+    # timeout: without one it never runs a callback, and Ctrl-C / SIGTERM get through between
+    executor = EventsExecutor()
+    executor.add_node(node)
     try:
-        while rclpy.ok() and not node.done:
-            rclpy.spin_once(node, timeout_sec=0.1)  # a finite timeout: signals get through
-        node.pub.wait_for_all_acked()
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        while rclpy.ok() and not node.done.done():
+            executor.spin_until_future_complete(node.done, timeout_sec=0.1)
+        node.pub.wait_for_all_acked()  # the last commands reach the plant and the recorder
+    except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
+        executor.shutdown(timeout_sec=1.0)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -8,6 +8,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,16 @@ from ..errors import ConfigError
 from .report import evaluate
 from .run import run, run_inprocess_to_bag
 
-__all__ = ["GRAPH_RUNS", "QUICK_RUNS", "Bench", "GraphRate", "GraphRun", "bench", "graph_rate"]
+__all__ = [
+    "GRAPH_RUNS",
+    "QUICK_RUNS",
+    "Bench",
+    "GraphRate",
+    "GraphRun",
+    "bench",
+    "graph_rate",
+    "graph_runs",
+]
 
 
 def graph_rate(
@@ -183,9 +193,29 @@ class Bench:
         return out
 
 
-def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool = False) -> Bench:
+def graph_runs(keys: Sequence[str]) -> tuple[GraphRun, ...]:
+    """The graph runs of :data:`GRAPH_RUNS` named by ``keys`` (``ros_example_dtc`` or
+    ``ros_example_dtc_steps_per_s``), in their order; ConfigError lists the keys."""
+    known = {g.key.removesuffix("_steps_per_s"): g for g in GRAPH_RUNS}
+    wanted = [k.removesuffix("_steps_per_s") for k in keys]
+    unknown = [k for k in wanted if k not in known]
+    if unknown:
+        raise ConfigError(f"--graph {unknown[0]}: not a graph run; one of {', '.join(known)}")
+    return tuple(g for name, g in known.items() if name in wanted)
+
+
+def bench(
+    *,
+    repeats: int = 3,
+    steps: int = 20000,
+    ros: bool = True,
+    quick: bool = False,
+    graph: Sequence[str] = (),
+) -> Bench:
     """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests).
-    ``quick``: one repeat of 2,000 steps and 0.3 s graph runs of the default engines."""
+    ``quick``: one repeat of 2,000 steps and 0.3 s graph runs of the default engines; ``graph``:
+    only these graph runs (see :func:`graph_runs`)."""
+    chosen = graph_runs(graph) if graph else QUICK_RUNS if quick else GRAPH_RUNS
     if quick:
         repeats, steps = 1, 2000
     if repeats < 1:
@@ -216,14 +246,14 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
         tr = run_inprocess(sc.with_strategy(name), steps=steps)
         m = compute_metrics(tr, t_start=0.05)
         compute[name] = m.compute_ns_median / 1e3
-    graph = []
+    measured: list[GraphRate] = []
     if ros:
-        for g in QUICK_RUNS if quick else GRAPH_RUNS:
+        for g in chosen:
             external: dict[str, str | None] | None = None
             if g.example_dtc:
                 command = example_dtc()
                 if command is None:
-                    graph.append(GraphRate(g, None, math.nan))  # not here: no figure
+                    measured.append(GraphRate(g, None, math.nan))  # not here: no figure
                     continue
                 external = {"torque_controller": command}
             before = _core_rate(sc, steps)
@@ -236,7 +266,7 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
                 external=external,
             )
             near = (before + _core_rate(sc, steps)) / 2
-            graph.append(GraphRate(g, r["steps_per_s"], r["startup_s"], near))
+            measured.append(GraphRate(g, r["steps_per_s"], r["startup_s"], near))
     return Bench(
         steps=steps,
         core_steps_per_s=_median(rates),
@@ -247,5 +277,5 @@ def bench(*, repeats: int = 3, steps: int = 20000, ros: bool = True, quick: bool
         report_x_core=_median([x / c for x, c in zip(report_rates, rates)]),
         compute_us_per_step=compute,
         real_time_steps_per_s=1.0 / sc.ts,
-        graph=graph,
+        graph=measured,
     )

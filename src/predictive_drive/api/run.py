@@ -175,8 +175,6 @@ def _check_external(
             raise ConfigError(
                 f"--external {name}=: an empty command (leave out '=' to start it by hand)"
             )
-        if command is not None:  # a typo is said before anything starts, not as a node's death
-            command_line(command, option=f"--external {name}=")
     if engine != "ros":
         raise ConfigError(
             f"--external runs your node as a process of its own: --engine ros, not {engine}"
@@ -186,6 +184,9 @@ def _check_external(
             "--external torque_controller: your node is the torque controller, so --strategy and "
             "--switch do not apply"
         )
+    for name, command in external.items():  # a typo is said before anything starts
+        if command is not None:
+            command_line(command, option=f"--external {name}=")
 
 
 def run(

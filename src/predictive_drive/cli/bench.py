@@ -18,16 +18,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--quick", action="store_true", help="short runs: a smoke test, not a measurement"
     )
+    p.add_argument(
+        "--graph",
+        metavar="KEY,...",
+        help="only these graph runs, by key (ros, ros_immediate, ros_sched_other, ros_unpinned, "
+        "composed, ros_example_dtc; the --json keys without _steps_per_s)",
+    )
 
 
 def main(a: argparse.Namespace) -> int:
     if a.quick:
         refuse(a, "sets what --quick sets already (1 repeat of 2,000 steps)", "repeats", "steps")
+    if a.no_ros:
+        refuse(a, "chooses graph runs, and --no-ros skips them all", "graph")
     d = bench(
         repeats=5 if a.repeats is None else a.repeats,
         steps=20000 if a.steps is None else a.steps,
         ros=not a.no_ros,
         quick=a.quick,
+        graph=[k for k in (a.graph or "").split(",") if k],
     )
     if a.json:
         return say_json(d)

@@ -146,7 +146,7 @@ def run_graph(
                     procs[name] = start_process(
                         ending_with_this_process([*words, *args, *own]),
                         log=logs / f"{name}.log",
-                        env=env,
+                        env={**env, CPUS_ENV: plan[name]} if name in plan else env,
                     )
                     continue
                 procs[name] = start_process(

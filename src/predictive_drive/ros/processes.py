@@ -319,9 +319,13 @@ def parameter_args(
 #: user's own node gets, which cannot watch the launcher as this package's nodes do. SIGTERM at
 #: once (Linux's PR_SET_PDEATHSIG survives exec), and SIGKILL GRACE s later from a watchdog
 #: forked before the exec (a child of the node: it goes when the node does) for a node that
-#: ignores SIGTERM. ``python -c THIS PARENT_PID GRACE COMMAND...``
+#: ignores SIGTERM. The launcher's placement (CPUs, scheduling policy: placement.CPUS_ENV,
+#: SCHED_ENV) is applied before the exec, so the node's threads inherit it as ours do.
+#: ``python -c THIS PARENT_PID GRACE COMMAND...``
 _END_WITH_PARENT = """
 import ctypes, os, signal, sys, time
+from predictive_drive.ros.placement import apply_placement
+apply_placement()
 launcher, grace = int(sys.argv[1]), float(sys.argv[2])
 def started(pid):  # None: gone or a zombie
     try:
