@@ -2,7 +2,8 @@
 
 Every short scenario runs with every strategy of its family, on the ideal drive and on the
 realism study's real drive (one period of computation delay with its compensation, dead time
-with device drops, the sensors), in-process, :data:`STEPS` steps each. A fingerprint is, per
+with device drops, the sensors), in-process, :data:`STEPS` steps each, the plant's period means
+on (they change nothing else: ``test_period_means_change_nothing_else``). A fingerprint is, per
 per-step topic (state, reference, command) and per field, a hash of the field's column as
 little-endian doubles: every field but ``compute_ns`` (wall time, never the same twice).
 
@@ -52,6 +53,10 @@ def real_drive(scenario: str) -> dict[str, Any]:
     return {**condition_settings(REALISM[study].hardware)[-1][1], **own}
 
 
+#: every run's own settings
+COMMON = {"plant.period_means": True}
+
+
 def cases() -> list[tuple[str, str, str, dict[str, Any]]]:
     """(id, scenario, strategy, settings) of every run fingerprinted."""
     out = []
@@ -59,7 +64,8 @@ def cases() -> list[tuple[str, str, str, dict[str, Any]]]:
         family = load_scenario_text(*_text(scenario, {})).family
         for strategy in strategy_names(family):
             for drive, settings in (("ideal", {}), ("real", real_drive(scenario))):
-                out.append((f"{scenario}-{strategy}-{drive}", scenario, strategy, settings))
+                case = (scenario, strategy, {**COMMON, **settings})
+                out.append((f"{scenario}-{strategy}-{drive}", *case))
     return out
 
 

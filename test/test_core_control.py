@@ -17,6 +17,7 @@ from predictive_drive.core.machines.induction import (
     induction_rk4,
     induction_torque,
 )
+from predictive_drive.core.plant import PERIOD_MEANS
 from predictive_drive.core.signals import Reference, State
 
 pytestmark = pytest.mark.core
@@ -197,9 +198,9 @@ def test_unknown_strategy_lists_the_valid_ones():
 
 
 def _state(k, i=0j, w=0.0):
-    return State(
-        float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0, i.real, i.imag, w, 0.0
-    )
+    sampled = (float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0)
+    truth = (i.real, i.imag, w, 0.0)
+    return State(*sampled, *truth, *(0.0,) * len(PERIOD_MEANS))  # the controller reads no mean
 
 
 def test_soft_start_is_latched_off_once_flux_reaches_threshold(im_short):

@@ -43,3 +43,24 @@ def test_a_run_records_what_it_recorded_before(stored, scenario, strategy, setti
         f"{added}. If the change is meant, run `python test/fingerprints.py` and say why in "
         f"the commit"
     )
+
+
+@pytest.mark.core
+@pytest.mark.parametrize("drive", ["ideal", "real"])
+def test_period_means_change_nothing_else(drive):
+    """The plant's period means on or off: every other field the same, bit for bit (the
+    integrator takes the same sub-steps); off, the means are NaN."""
+    import math
+
+    import numpy as np
+
+    from predictive_drive.core.plant import PERIOD_MEANS
+
+    case = next(c for c in CASES if c[0] == f"ipmsm_mtpa_short-foc_zero_d-{drive}")
+    on = trace_of(case[1], case[2], case[3])
+    off = trace_of(case[1], case[2], {**case[3], "plant.period_means": False})
+    n = len(on.state[0]) - len(PERIOD_MEANS)
+    assert np.array_equal(on.state[:, :n], off.state[:, :n], equal_nan=True)
+    assert np.array_equal(on.command[:, :-1], off.command[:, :-1], equal_nan=True)  # not compute_ns
+    assert np.isnan(off.state[:, n:]).all() and not np.isnan(on.state[:, n:]).any()
+    assert not math.isnan(on.state[-1, -1])

@@ -71,6 +71,7 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
         dead_time=p.dead_time,
         device_drop=p.device_drop,
         sensors=sensors,
+        period_means=p.period_means,
     )
 
 

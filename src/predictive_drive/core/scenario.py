@@ -10,7 +10,7 @@ from typing import Any
 from ..errors import ConfigError
 from .control import EXTERNAL, controller_class
 from .control.speed_pi import SpeedPIParams
-from .fields import check_fields, choice, quantity
+from .fields import check_fields, choice, flag, quantity
 from .machines import Machine
 from .timebase import StepProfile, step_index
 
@@ -50,9 +50,10 @@ class RunParams:
 
 @dataclass(frozen=True)
 class PlantParams:
-    """Plant: machine, inverter, load steps, integrator sub-step; and what makes it a real drive
+    """Plant: machine, inverter, load steps, integrator sub-step; what makes it a real drive
     (docs/physics.md#a-real-drive), every one ideal by default: the computation delay, the
-    inverter's dead time and device drops, the current and position sensors."""
+    inverter's dead time and device drops, the current and position sensors; and whether it
+    publishes the period means (docs/physics.md#continuous-time-figures)."""
 
     motor: Any  #: the machine type's motor parameters (:data:`~.machines.MOTORS`)
     u_dc: float = quantity("DC-link voltage", "V", gt=0)
@@ -89,6 +90,10 @@ class PlantParams:
     )
     sensor_seed: int = quantity(
         "seed of the sensors' noise (same seed, same recording)", ge=0, integer=True, default=0
+    )
+    period_means: bool = flag(
+        "integrate torque, flux and current between the samples: the state's *_avg fields and "
+        "the continuous-time figures (off: NaN; costs a third of a run's time)"
     )
 
     def __post_init__(self) -> None:

@@ -54,6 +54,15 @@ class State(NamedTuple):
     i_beta_true: float  #: stator current β, A (truth)
     omega_m_true: float  #: mechanical speed, rad/s (truth)
     theta_e_true: float  #: rotor electrical angle, rad, [0, 2π) (truth)
+    # means over the period that ended at k, between the samples (truth; at k = 0 the values at
+    # 0): what the continuous-time figures are computed from (docs/physics.md#metrics)
+    torque_avg: float  #: mean electromagnetic torque, N·m
+    torque_sq_avg: float  #: mean of its square, (N·m)²
+    flux_avg: float  #: mean stator-flux magnitude |ψ_s|, Wb
+    flux_sq_avg: float  #: mean of its square, Wb²
+    i_alpha_avg: float  #: mean stator current α, A
+    i_beta_avg: float  #: mean stator current β, A
+    current_sq_avg: float  #: mean of |i_s|² = i_α² + i_β², A²
 
 
 class Reference(NamedTuple):
