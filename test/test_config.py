@@ -1,6 +1,7 @@
 """Scenario files: ROS parameter-file form, validation errors that name file, key and allowed values."""
 
 import dataclasses
+import math
 from pathlib import Path
 
 import pytest
@@ -207,3 +208,31 @@ def test_mtpa_scenarios_have_the_papers_values():
     assert ip.plant.motor == load_scenario("ipmsm_validation").plant.motor  # paper 001's IPMSM
     assert ip.plant.load_values == (5.0, 10.0, 15.0)
     assert all(b - a >= 1.0 for a, b in zip(ip.plant.load_times, (*ip.plant.load_times[1:], 4.5)))
+
+
+@pytest.mark.parametrize("value", [-0.1, math.nan, math.inf], ids=["negative", "nan", "inf"])
+@pytest.mark.parametrize("scenario", ["im_short", "ipmsm_short"])
+def test_a_switching_effort_must_be_a_finite_number_not_below_zero(scenario, value):
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path(scenario)
+    text = apply_settings(path.read_text(), {"torque_controller.lambda_sw": value}, path)
+    with pytest.raises(ConfigError, match=r"lambda_sw must be a finite number >= 0") as e:
+        load_scenario_text(text, path)
+    assert str(path) in str(e.value)
+
+
+def test_a_switching_effort_is_refused_where_no_finite_control_set_chooses():
+    """Field-oriented control modulates: it has no candidates to weigh, so no lambda_sw."""
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path("ipmsm_mtpa_short")
+    hint = r"lambda_sw is a setting of the controller families mptc_im, mptc_pmsm; this "
+    with pytest.raises(ConfigError, match=hint + "scenario's torque controller is foc_pmsm"):
+        apply_settings(path.read_text(), {"torque_controller.lambda_sw": 0.1}, path)
+    text = path.read_text().replace(
+        "    strategy: foc_injection", "    lambda_sw: 0.1\n    strategy: foc_injection"
+    )
+    assert "lambda_sw" in text
+    with pytest.raises(ConfigError, match=r"unknown key 'lambda_sw'; allowed keys: .*" + hint):
+        load_scenario_text(text, path)

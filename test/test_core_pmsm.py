@@ -11,9 +11,15 @@ import pytest
 
 from predictive_drive.config import load_scenario
 from predictive_drive.core.control import PMSMController, make_strategy
+from predictive_drive.core.control.base import SwitchingEffort
 from predictive_drive.core.control.candidates import TABLES, sector
 from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
-from predictive_drive.core.inverter import vector_voltages
+from predictive_drive.core.inverter import (
+    VECTOR_STATES,
+    active_then_zero,
+    segments,
+    vector_voltages,
+)
 from predictive_drive.core.machines.pmsm import (
     PMSM,
     PMSMCoefficients,
@@ -185,11 +191,21 @@ def candidates_of(name, v, threshold, t_ref, psi_ref):
     return TABLES.twelve[0 if d_t > 0 else 1][f][sector(v.theta_psi, 12)]
 
 
+@pytest.mark.parametrize("lam_sw", [0.0, 0.02, 0.2, 1.0])
 @pytest.mark.parametrize("name", ["mptc", "simplified1", "simplified2", "simplified3"])
 @pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
-def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
+def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor, lam_sw):
+    """Each strategy against a brute force over its own candidates: eq 5's normalised cost and,
+    with a switching effort λ_sw (docs/physics.md#switching-effort), λ_sw × the leg commutations
+    of the vector for the whole period from the state in force, counted by the plant's segment
+    count. λ_sw = 0 runs the law without an effort at all."""
     s = make_strategy("mptc_pmsm", name)
+    rng = random.Random(11)
     for m, v, t_ref, psi_ref in random_views(motor, 300):
+        prev = VECTOR_STATES[rng.randrange(8)]
+        if lam_sw:
+            m.effort = SwitchingEffort(lam_sw)
+            m.switching(prev)
         d = s.decide(m, t_ref, psi_ref)
         cands = candidates_of(name, v, m.threshold, t_ref, psi_ref)
         if cands is None:
@@ -199,9 +215,11 @@ def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
         costs = []
         for n in cands:
             t1, p1 = vector_form(v, n)
-            costs.append(math.sqrt(((t1 - t_ref) / norm_t) ** 2 + ((p1 - psi_ref) / psi_ref) ** 2))
+            g = math.sqrt(((t1 - t_ref) / norm_t) ** 2 + ((p1 - psi_ref) / psi_ref) ** 2)
+            pulses, _ = active_then_zero(n, 1.0, prev)
+            costs.append(g + lam_sw * (segments(pulses, prev)[2] // 2))
         best = cands[int(np.argmin(costs))]  # first minimum, ascending vector order
-        assert d.vector == best, (name, cands, costs)
+        assert d.vector == best, (name, prev, cands, costs)
         assert d.cal == len(cands) and d.fraction == 1.0
 
 
@@ -408,3 +426,13 @@ def test_continuous_current_thd_counts_what_samples_miss():
     m = compute_metrics(tr, thd_window=(0.0, 0.2))
     assert m.thd_cycles == 10
     assert m.i_thd_cont == pytest.approx(math.hypot(1.0, 0.5) / 10.0, rel=1e-3)
+
+
+def test_switching_effort_lowers_the_switching_frequency(ipmsm_short):
+    """Closed loop, conventional MPTC on paper 001's IPMSM: f_sw falls as λ_sw rises."""
+    f_sw = []
+    for lam_sw in (0.0, 0.05, 0.2):
+        ctrl = dataclasses.replace(ipmsm_short.controller, lambda_sw=lam_sw)
+        sc = dataclasses.replace(ipmsm_short, controller=ctrl)
+        f_sw.append(compute_metrics(run_inprocess(sc, steps=3000)).f_sw_hz)
+    assert f_sw[0] > f_sw[1] > f_sw[2], f_sw

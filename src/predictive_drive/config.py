@@ -250,6 +250,24 @@ def build_section(cls: type, data: Any, nested: dict[str, type], where: str) -> 
         raise ConfigError(f"{where}: {e}") from None
 
 
+def _family_hint(key: str, family: Any) -> str:
+    """A sentence naming the controller families that have ``key``, when the scenario's family
+    (``family``) does not: a setting of another family is a different mistake from a typo."""
+    if family is None:
+        return ""
+    owners = [
+        name
+        for name, cls in CONTROLLERS.items()
+        if name != family and key in section_fields(cls.params_type)
+    ]
+    if not owners:
+        return ""
+    return (
+        f" ({key} is a setting of the controller famil{'ies' if len(owners) > 1 else 'y'} "
+        f"{', '.join(owners)}; this scenario's torque controller is {family})"
+    )
+
+
 def family_of(params: dict[str, Any], where: str, default: str | None = None) -> str:
     """The controller family a torque_controller section names; ConfigError lists the valid ones."""
     family = params.get(FAMILY_KEY, default)
@@ -318,6 +336,12 @@ def load_scenario_text(text: str, path: str | Path, *, legacy: bool = False) -> 
             f"{path}: {ctrl_key}.{FAMILY_KEY}: {family!r} controls a {controls} machine, but the "
             f"scenario's machine is {run.machine!r}"
         )
+    own = section_fields(controller_class(family).params_type)
+    for key in ctrl_params:
+        if key not in own and (hint := _family_hint(key, family)):
+            raise ConfigError(
+                f"{path}: {ctrl_key}: unknown key {key!r}; allowed keys: {', '.join(own)}{hint}"
+            )
     built = {}
     for node, (cls, nested) in section_classes(run.machine, family).items():
         key = f"{NAMESPACE}/{node}"
@@ -385,9 +409,10 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
         leaf = path[-1]
         optional = _defaulted(doc, node, where) if len(path) == 1 else set()
         if leaf not in params and leaf not in optional:
+            family = params.get(FAMILY_KEY) if node == "torque_controller" else None
             raise ConfigError(
                 f"setting {key!r}: {section} has no key {leaf!r} here; keys: "
-                f"{', '.join(sorted(set(params) | optional))}"
+                f"{', '.join(sorted(set(params) | optional))}{_family_hint(leaf, family)}"
             )
         if isinstance(value, str) and value.startswith("*"):
             try:

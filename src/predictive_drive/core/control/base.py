@@ -16,14 +16,16 @@ from collections.abc import Mapping
 from time import perf_counter_ns
 from typing import Any, ClassVar, NamedTuple, Protocol
 
-from ..fields import flag
-from ..inverter import active_then_zero, clarke, vector_voltages
+from ..fields import flag, quantity
+from ..inverter import VECTOR_STATES, active_then_zero, clarke, vector_voltages
 from ..machines import Machine
 from ..machines.pmsm import PMSMCoefficients, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
 
 __all__ = [
     "Controller",
+    "SwitchingEffort",
+    "lambda_sw_field",
     "pmsm_predicted",
     "Decision",
     "Strategy",
@@ -52,6 +54,55 @@ def delay_compensation() -> Any:
 
 NAN = math.nan
 TWO_PI = 2.0 * math.pi
+
+
+def lambda_sw_field(unit: str) -> Any:
+    """The ``lambda_sw`` field of a finite-control-set family: its cost per leg commutation, in
+    the unit of the family's cost (docs/physics.md#switching-effort)."""
+    return quantity(
+        "switching-effort weight: cost per leg commutation a candidate causes from the switching "
+        "state in force, the return to the zero vector within the period included (0: none)",
+        unit,
+        ge=0,
+        default=0.0,
+    )
+
+
+def _legs(a: tuple[int, int, int], b: tuple[int, int, int]) -> int:
+    return sum(x != y for x, y in zip(a, b))
+
+
+class SwitchingEffort:
+    """λ_sw × the leg commutations each candidate causes (docs/physics.md#switching-effort),
+    tabulated once per weight by the switching state in force (its code S_a·4 + S_b·2 + S_c).
+
+    ``full[code][n]``: vector n for the whole period (V0: the zero vector nearer to the state in
+    force, as :func:`~..inverter.active_then_zero` picks it); ``then_zero[code][n]``: vector
+    n ≥ 1 for part of the period, then the zero vector nearer to it (always one leg more).
+    """
+
+    def __init__(self, weight: float) -> None:
+        self.weight = weight
+        states = [((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)]
+        full, then_zero = [], []
+        for prev in states:
+            on = sum(prev)
+            zero = min(on, 3 - on)
+            legs = [zero, *(_legs(prev, VECTOR_STATES[n]) for n in range(1, 7))]
+            full.append(tuple(weight * x for x in legs))
+            then_zero.append(tuple(weight * (x + (n > 0)) for n, x in enumerate(legs)))
+        self.full: tuple[tuple[float, ...], ...] = tuple(full)
+        self.then_zero: tuple[tuple[float, ...], ...] = tuple(then_zero)
+
+    @staticmethod
+    def code(switches: tuple[int, int, int]) -> int:
+        return switches[0] * 4 + switches[1] * 2 + switches[2]
+
+    def applied(self, code: int, vector: int, fraction: float) -> float:
+        """The cost of vector ``vector`` applied for ``fraction`` of Ts, then the zero vector."""
+        if vector == 0 or fraction <= 0.0:
+            return self.full[code][0]
+        return self.full[code][vector] if fraction >= 1.0 else self.then_zero[code][vector]
 
 
 class Strategy(Protocol):

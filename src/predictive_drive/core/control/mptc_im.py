@@ -18,7 +18,13 @@ from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.induction import InductionCoefficients, InductionMotor
 from ..signals import Reference, State, new_record
-from .base import Decision, VectorController, delay_compensation
+from .base import (
+    Decision,
+    SwitchingEffort,
+    VectorController,
+    delay_compensation,
+    lambda_sw_field,
+)
 
 __all__ = [
     "A0_FORMS",
@@ -63,14 +69,42 @@ class IMPrediction:
         "volts",
         "active",
         "_z",
+        "effort",
+        "code",
+        "sw",
+        "sw_zero",
     )
 
-    def __init__(self, c: InductionCoefficients, ts: float, lam: float, a0_printed: bool) -> None:
+    def __init__(
+        self,
+        c: InductionCoefficients,
+        ts: float,
+        lam: float,
+        a0_printed: bool,
+        effort: SwitchingEffort | None = None,
+    ) -> None:
         self.c = c
         self.ts = ts
         self.lam = lam
         self.a0_printed = a0_printed
         self.volts: tuple[complex, ...] = ()
+        #: the switching effort (None: λ_sw = 0) and, per candidate, its cost from the state in
+        #: force (``code``): ``sw`` for the whole period, ``sw_zero`` then the zero vector
+        self.effort = effort
+        self.code = 0
+        self.sw: tuple[float, ...] = _NO_EFFORT
+        self.sw_zero: tuple[float, ...] = _NO_EFFORT
+        self.switching((0, 0, 0))
+
+    def switching(self, switches: tuple[int, int, int]) -> None:
+        """The switching state in force (the one the candidates' commutations count from)."""
+        e = self.effort
+        if e is None:
+            self.code = 0
+            self.sw = self.sw_zero = _NO_EFFORT
+            return
+        self.code = code = e.code(switches)
+        self.sw, self.sw_zero = e.full[code], e.then_zero[code]
 
     def prepare(self, i: complex, psi: complex, omega_m: float, volts: tuple[complex, ...]) -> None:
         a_ii, b_ip, cw, rs, p, tk, _, _ = self.c
@@ -117,15 +151,21 @@ class MPTC:
 
 
 class MPTCDB:
-    """MPTC, then a deadbeat duty for the chosen vector (paper 000 §2, eq 9-14)."""
+    """MPTC, then a deadbeat duty for the chosen vector (paper 000 §2, eq 9-14). With a switching
+    effort, each candidate's cost counts the commutations of the duty it would be given."""
 
     name = "mptc_db"
 
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        n = _argmin_full_period(m, torque_ref, flux_ref)
-        if n == 0:
-            return _FULL_PERIOD[0]
-        t_u = m.deadbeat_time(m.volts[n], torque_ref)
+        if m.effort is None:
+            n = _argmin_full_period(m, torque_ref, flux_ref)
+            if n == 0:
+                return _FULL_PERIOD[0]
+            t_u = m.deadbeat_time(m.volts[n], torque_ref)
+        else:
+            n, t_u = _argmin_with_duty(m, torque_ref, flux_ref)
+            if n == 0:
+                return _FULL_PERIOD[0]
         return new_record(Decision, (n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7))
 
 
@@ -144,8 +184,9 @@ class DBMPTC:
         tk = m.c.torque_k
         z = m._z
         zr, zi = z.real, z.imag
+        sw, sw_zero = m.sw, m.sw_zero
         # V0: applied for the whole period, t_u = Ts
-        best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free))
+        best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free)) + sw[0]
         best_n, best_t = 0, ts
         raw_best = ts
         cal = 1
@@ -158,7 +199,10 @@ class DBMPTC:
             cal += 1
             t1 = te + t_u * au + a0ts
             p1 = psi_free + t_u * u
+            # the commutations: the whole period, none of it (t_u = 0: zero vector), or the
+            # vector and then the zero vector (+ 0.0 when λ_sw = 0: the same cost, bit for bit)
             g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+            g += sw[n] if t_u >= ts else sw_zero[n] if t_u > 0.0 else sw[0]
             if g < best:
                 best, best_n, best_t, raw_best = g, n, t_u, t_raw
         return new_record(Decision, (best_n, best_t / ts, raw_best, cal))
@@ -168,21 +212,45 @@ class DBMPTC:
 _FULL_PERIOD = tuple(Decision(n, 1.0, NAN, 7) for n in range(7))
 
 
+#: the switching effort's costs when λ_sw = 0 (adding 0.0 changes no cost)
+_NO_EFFORT = (0.0,) * 7
+
+
 def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> int:
-    """First strict minimum over V0..V6 of the full-period cost."""
+    """First strict minimum over V0..V6 of the full-period cost (with the switching effort of
+    each vector for the whole period)."""
     tk = m.c.torque_k
     lam = m.lam
-    i_free, psi_free, gain_i, ts = m.i_free, m.psi_free, m.gain_i, m.ts
+    i_free, psi_free, gain_i, ts, sw = m.i_free, m.psi_free, m.gain_i, m.ts, m.sw
     best = INF
     best_n = 0
     for n, u in enumerate(m.volts):
         i1 = i_free + gain_i * u
         p1 = psi_free + ts * u
         t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
-        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + sw[n]
         if g < best:
             best, best_n = g, n
     return best_n
+
+
+def _argmin_with_duty(m: IMPrediction, torque_ref: float, flux_ref: float) -> tuple[int, float]:
+    """MPTC-DB's choice with a switching effort: first strict minimum over V0..V6 of the
+    full-period cost plus the commutations of the duty each vector would be given; the chosen
+    vector and its raw t_u (s)."""
+    assert m.effort is not None
+    tk, lam, code, applied = m.c.torque_k, m.lam, m.code, m.effort.applied
+    i_free, psi_free, gain_i, ts = m.i_free, m.psi_free, m.gain_i, m.ts
+    best, best_n, best_t = INF, 0, NAN
+    for n, u in enumerate(m.volts):
+        i1 = i_free + gain_i * u
+        p1 = psi_free + ts * u
+        t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
+        t_u = m.deadbeat_time(u, torque_ref) if n else ts
+        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + applied(code, n, t_u / ts)
+        if g < best:
+            best, best_n, best_t = g, n, t_u
+    return best_n, best_t
 
 
 #: strategy name → class; registry order is the ``strategy`` index in commands
@@ -201,6 +269,7 @@ class InductionControllerParams:
     motor: InductionMotor
     strategy: str = choice("control law; switchable at run time", tuple(IM_STRATEGIES))
     lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
+    lambda_sw: float = lambda_sw_field("N·m")
     soft_start_flux: float = quantity(
         "soft start until the flux estimate first reaches this", "Wb", ge=0, default=0.65
     )
@@ -234,7 +303,10 @@ class InductionController(VectorController):
     def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
         c = InductionCoefficients.of(params.motor)
         self._coef = c
-        self._pred = IMPrediction(c, ts, params.lambda_psi, params.a0_form == "paper_printed")
+        effort = SwitchingEffort(params.lambda_sw) if params.lambda_sw > 0 else None
+        self._pred = IMPrediction(
+            c, ts, params.lambda_psi, params.a0_form == "paper_printed", effort
+        )
         super().__init__(params, ts=ts)
         self.psi_hat = 0j
         self._psi_next = 0j  #: delay compensation: ψ̂ at k+1 under the voltage in force
@@ -266,6 +338,8 @@ class InductionController(VectorController):
         m = self._pred
         psi = self._psi_next if self._compensate else self.psi_hat
         m.prepare(i, psi, state.omega_m, self._volts)  # keeps i for _applied
+        if m.effort is not None:
+            m.switching(self.switches)
         self.est_torque = m.te
         if self.soft_start:
             return Decision(0 if abs(i) > self.params.soft_start_current else 1, 1.0, NAN, 0)

@@ -22,7 +22,14 @@ from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
-from .base import Decision, VectorController, delay_compensation, pmsm_predicted
+from .base import (
+    Decision,
+    SwitchingEffort,
+    VectorController,
+    delay_compensation,
+    lambda_sw_field,
+    pmsm_predicted,
+)
 from .candidates import TABLES
 
 __all__ = [
@@ -73,15 +80,33 @@ class PMSMPrediction:
         "q",
         "consts",
         "args",
+        "effort",
+        "sw",
     )
 
-    def __init__(self, c: PMSMCoefficients, ts: float, threshold: float, t_floor: float) -> None:
+    def __init__(
+        self,
+        c: PMSMCoefficients,
+        ts: float,
+        threshold: float,
+        t_floor: float,
+        effort: SwitchingEffort | None = None,
+    ) -> None:
         self.c = c
         self.ts = ts
         self.threshold = threshold
         self.t_floor = t_floor
         #: the parameters the candidate loop needs
         self.consts = (c.psi_f, 1.0 / c.l_d, 1.0 / c.l_q, c.torque_k, c.l_d - c.l_q, t_floor)
+        #: the switching effort (None: λ_sw = 0) and each vector's cost for the whole period
+        #: from the state in force (:meth:`switching`)
+        self.effort = effort
+        self.sw: tuple[float, ...] | None = None
+
+    def switching(self, switches: tuple[int, int, int]) -> None:
+        """The switching state in force (the one the candidates' commutations count from)."""
+        if self.effort is not None:
+            self.sw = self.effort.full[self.effort.code(switches)]
 
     def prepare(self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float) -> None:
         """The estimate from the measured currents, rotor angle and DC link."""
@@ -131,14 +156,19 @@ class PMSMPrediction:
 
 
 def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: float) -> int:
-    """First strict minimum of eq 5 over V0 and the non-zero vectors ``active`` (ascending; sqrt
-    dropped: it keeps the order). V0 leaves ψ and δ as they are, so its prediction is T̂ itself."""
+    """First strict minimum of eq 5 over V0 and the non-zero vectors ``active`` (ascending). V0
+    leaves ψ and δ as they are, so its prediction is T̂ itself. Without a switching effort the
+    sqrt is dropped (it keeps the order); with one, each vector's effort adds to the cost
+    itself."""
+    sw = m.sw
     pf, ild, ilq, tk, dl, t_floor, psi, delta, th, q, te = m.args
     inv_t = 1.0 / (t_ref if t_ref > t_floor else -t_ref if -t_ref > t_floor else t_floor)
     inv_p = 1.0 / psi_ref
     e_t = (te - t_ref) * inv_t
     e_p = (psi - psi_ref) * inv_p
     best = e_t * e_t + e_p * e_p
+    if sw is not None:
+        best = sqrt(best) + sw[0]
     best_n = 0
     qq1 = 1.0 + q * q
     q2 = q + q
@@ -152,6 +182,8 @@ def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: f
         e_t = (tk * i_q1 * (pf + dl * (psi1 * cos(d1) - pf) * ild) - t_ref) * inv_t
         e_p = (psi1 - psi_ref) * inv_p
         g = e_t * e_t + e_p * e_p
+        if sw is not None:
+            g = sqrt(g) + sw[n]
         if g < best:
             best = g
             best_n = n
@@ -255,6 +287,7 @@ class PMSMControllerParams:
         nan_default="1 % of rated torque",
         default=NAN,
     )
+    lambda_sw: float = lambda_sw_field("1 (the cost is normalised, eq 5)")
     delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:
@@ -273,8 +306,9 @@ class PMSMController(VectorController):
     strategies = PMSM_STRATEGIES
 
     def __init__(self, params: PMSMControllerParams, *, ts: float) -> None:
+        effort = SwitchingEffort(params.lambda_sw) if params.lambda_sw > 0 else None
         self._pred = PMSMPrediction(
-            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor
+            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor, effort
         )
         super().__init__(params, ts=ts)
 
@@ -289,7 +323,10 @@ class PMSMController(VectorController):
         self.est_flux_angle = m.theta_psi
 
     def _decide(self, state: State, ref: Reference) -> Decision:
-        d: Decision = self.strategy.decide(self._pred, ref.torque_ref, ref.flux_ref)
+        m = self._pred
+        if m.effort is not None:
+            m.switching(self.switches)
+        d: Decision = self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
         return d
 
     def decision_inputs(self, states: list[State]) -> list[PMSMPrediction]:
