@@ -181,9 +181,10 @@ def test_bad_scenario_errors_name_file_and_key(tmp_path, case):
 
 def test_unknown_scenario_name_lists_available():
     with pytest.raises(
-        ConfigError, match="available: hs_ipmsm_mtpa, hs_ipmsm_mtpa_short, im_paper"
-    ):
+        ConfigError, match="available: hs_ipmsm_mtpa, hs_ipmsm_mtpa_short, hs_ipmsm_steady, "
+    ) as e:
         load_scenario("nope")
+    assert ", im_paper, im_short, " in str(e.value)
 
 
 def test_dataclasses_are_frozen():
@@ -235,4 +236,29 @@ def test_a_switching_effort_is_refused_where_no_finite_control_set_chooses():
     )
     assert "lambda_sw" in text
     with pytest.raises(ConfigError, match=r"unknown key 'lambda_sw'; allowed keys: .*" + hint):
+        load_scenario_text(text, path)
+
+
+STEADY = ("im_steady", "ipmsm_steady", "hs_ipmsm_steady")
+
+
+@pytest.mark.parametrize("name", STEADY)
+def test_a_steady_point_is_the_same_drive_for_mptc_and_field_orientation(name):
+    """<name> and <name>_foc: the same machine, inverter, held speed, torque and flux
+    references and windows; they differ in the control period and the torque controller alone
+    (the fronts compare the two at the same operating point)."""
+    fcs, foc = load_scenario(name), load_scenario(f"{name}_foc")
+    assert fcs.plant == foc.plant and fcs.speed_pi == foc.speed_pi and fcs.logger == foc.logger
+    assert fcs.run.machine == foc.run.machine and fcs.run.duration == foc.run.duration
+    assert fcs.family.startswith("mptc_") and foc.family.startswith("foc_")
+    assert fcs.plant.held and fcs.speed_pi.torque_control and fcs.plant.period_means
+    assert fcs.logger.thd_window == (fcs.logger.window_start, fcs.logger.window_end)
+
+
+def test_a_held_shaft_refuses_a_load_profile(tmp_path):
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path("ipmsm_steady")
+    text = apply_settings(path.read_text(), {"plant.load_values": [5.0]}, path)
+    with pytest.raises(ConfigError, match=r"plant.load_values: \[5.0\] with a held speed"):
         load_scenario_text(text, path)

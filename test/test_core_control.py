@@ -404,3 +404,26 @@ def test_switching_effort_lowers_the_switching_frequency(im_short, name):
         sc = dataclasses.replace(im_short, controller=ctrl)
         f_sw.append(compute_metrics(run_inprocess(sc, steps=3000), t_start=0.02).f_sw_hz)
     assert f_sw[0] > f_sw[1] > f_sw[2], f_sw
+
+
+@pytest.mark.parametrize("loop", ["one_step", "immediate"])
+def test_a_torque_profile_replaces_the_speed_pi(loop):
+    """With speed_pi.torque_times the reference is the torque profile's at the step it is for,
+    whatever the speed, and the PI integrates nothing."""
+    pi = SpeedPI(
+        pi_params(torque_times=(0.0, 0.001), torque_values=(2.0, -2.0), speed_loop=loop), ts=TS
+    )
+    lag = 0 if loop == "immediate" else 1
+    if loop == "one_step":
+        assert pi.initial().torque_ref == 2.0
+    for k in range(60):
+        r = pi.step(_state(k, w=123.0))
+        assert r.k == k + lag and r.torque_ref == (2.0 if k + lag < 20 else -2.0)
+    assert pi.integral == 0.0
+
+
+def test_a_torque_profile_beyond_the_limit_is_refused():
+    from predictive_drive.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"speed_pi.torque_values: \[9.0\] N·m reach beyond"):
+        pi_params(torque_times=(0.0,), torque_values=(9.0,))

@@ -436,3 +436,20 @@ def test_switching_effort_lowers_the_switching_frequency(ipmsm_short):
         sc = dataclasses.replace(ipmsm_short, controller=ctrl)
         f_sw.append(compute_metrics(run_inprocess(sc, steps=3000)).f_sw_hz)
     assert f_sw[0] > f_sw[1] > f_sw[2], f_sw
+
+
+def test_a_held_shaft_turns_at_its_profile_whatever_the_torque():
+    """A load machine holds the speed (plant.held_speed_*): whatever torque the motor makes, ω_m
+    is the profile's at every step — stepping exactly at its step — and θ turns with it."""
+    rpm = 2 * math.pi / 60
+    held = StepProfile((0.0, 0.01), (500 * rpm, 1000 * rpm))
+    plant = PMSMPlant(IPMSM, ts=TS, u_dc=U_DC, load=StepProfile((0.0,), (0.0,)), max_substep=TS,
+                      held_speed=held)  # fmt: skip
+    states = [plant.state()]
+    for k in range(400):
+        states.append(plant.step(Command(k, k * TS, 0, 0, 0, 1, 1, 0, *[math.nan] * 13)))
+    w = np.array([s.omega_m for s in states])
+    assert np.all(w[:200] == 500 * rpm) and np.all(w[200:] == 1000 * rpm)
+    assert abs(states[-1].torque) > 1.0  # the motor makes torque; the shaft does not give
+    theta = np.array([s.theta_m for s in states])
+    np.testing.assert_allclose(np.diff(theta), w[:-1] * TS, rtol=1e-12)

@@ -773,3 +773,21 @@ def test_a_real_drive_through_the_graph_equals_inprocess(tmp_path):
     assert_same_run(a, b)
     assert not np.array_equal(a.col("state", "i_alpha"), a.col("state", "i_alpha_true"))
     assert "actuation_delay_steps: 1" in info.info["scenario_yaml"]
+
+
+def test_field_orientation_at_a_held_point_through_the_graph_equals_inprocess(tmp_path):
+    """foc_im (field orientation of the induction motor) at a steady point — the shaft held by
+    a load machine through a speed step, T* from a torque profile, the plant's period means on —
+    through the four processes: the same run as in-process, bit for bit; its switching
+    frequency the carrier's."""
+    g = run("im_steady_foc", duration=0.08, out=tmp_path / "g")
+    i = run("im_steady_foc", duration=0.08, engine="inprocess", out=tmp_path / "i")
+    a, info = read_bag(g.bag)
+    b, _ = read_bag(i.bag)
+    assert info.complete and a.steps == b.steps == 800
+    assert_same_run(a, b)
+    assert g.metrics.f_sw_hz == pytest.approx(1e4, rel=1e-9)
+    w = a.col("state", "omega_m")
+    assert np.all(w[:500] == 0.0) and np.all(w[500:] == pytest.approx(2772 * np.pi / 30))
+    assert np.all(a.col("reference", "torque_ref") == 3.0)
+    assert np.isfinite(g.metrics.t_rmse_cont) and g.metrics.t_rmse_cont != g.metrics.t_rmse

@@ -108,6 +108,7 @@ class InverterPlant:
 
     coefficients: Any  #: class with ``of(motor)``: the machine's precomputed constants
     x0: tuple[Any, ...]  #: initial state
+    speed_index: int  #: where ω_m is in the state
     default_integrator: Callable[..., tuple[Any, ...]]
 
     def __init__(
@@ -124,18 +125,25 @@ class InverterPlant:
         device_drop: float = 0.0,
         sensors: Sensors | None = None,
         period_means: bool = False,
+        held_speed: StepProfile | None = None,
     ) -> None:
         self.motor = motor
         self.ts = ts
         self.u_dc = u_dc
         self._coef = self.coefficients.of(motor)
+        x0 = self.x0
+        #: the speed a load machine holds (rad/s), by step; None: a free shaft
+        self._held = None if held_speed is None else held_speed.sampled(ts)
+        if self._held is not None:  # no torque moves the shaft: it turns as it is held
+            self._coef = self._coef._replace(inv_j=0.0, b=0.0)
+            x0 = self._with_speed(x0, self._held.at(0))
         self._load = load.sampled(ts)
         self._max_substep = max_substep
         self._integrate = integrator or type(self).default_integrator
         self._volts = {s: u_dc * clarke(*s) for s in _ALL_STATES}
         self.k = 0
         self.load = self._load.at(0)  #: N·m, load torque during the coming period k
-        self.x: tuple[Any, ...] = self.x0
+        self.x: tuple[Any, ...] = x0
         self.switches = (0, 0, 0)
         self._transitions = 0
         #: the commands issued but not yet acting, oldest first (actuation delay)
@@ -162,6 +170,17 @@ class InverterPlant:
     def _point(self, x: tuple[Any, ...]) -> Point:
         """The :data:`Point` of state ``x``: what the period means are taken of."""
         raise NotImplementedError
+
+    def _with_speed(self, x: tuple[Any, ...], omega_m: float) -> tuple[Any, ...]:
+        w = self.speed_index
+        return (*x[:w], omega_m, *x[w + 1 :])
+
+    def _next_period(self) -> None:
+        """Step k done: on to k + 1, its load (and the speed a load machine holds)."""
+        self.k += 1
+        self.load = self._load.at(self.k)
+        if self._held is not None:
+            self.x = self._with_speed(self.x, self._held.at(self.k))
 
     def _piece(self, x: tuple[Any, ...], u: Any, h: float) -> tuple[Any, ...]:
         """``x`` after ``h`` s under ``u`` (constant), in sub-steps of at most ``max_substep``,
@@ -295,8 +314,7 @@ class InverterPlant:
                 n = 1 if h <= max_sub else math.ceil(h / max_sub - 1e-9)
                 x = integrate(0.0, x, (volts[sw], load), coef, h, n)
         self.x = x
-        self.k += 1
-        self.load = self._load.at(self.k)
+        self._next_period()
         return self.state()
 
     def _step_real(self, pulses: Sequence[float]) -> State:
@@ -349,8 +367,7 @@ class InverterPlant:
         self.x = x
         if self._means:
             self._close_period()
-        self.k += 1
-        self.load = self._load.at(self.k)
+        self._next_period()
         return self.state()
 
 
@@ -361,6 +378,7 @@ class InductionPlant(InverterPlant):
     motor: InductionMotor
     coefficients = InductionCoefficients
     x0 = (0j, 0j, 0.0, 0.0)
+    speed_index = _IM_W
     default_integrator = staticmethod(induction_exact)
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
@@ -390,6 +408,7 @@ class PMSMPlant(InverterPlant):
     motor: PMSM
     coefficients = PMSMCoefficients
     x0 = (0j, 0.0, 0.0)
+    speed_index = _PM_W
     default_integrator = staticmethod(pmsm_rk4)
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:

@@ -72,6 +72,7 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
         device_drop=p.device_drop,
         sensors=sensors,
         period_means=p.period_means,
+        held_speed=p.held_speed() if p.held else None,
     )
 
 

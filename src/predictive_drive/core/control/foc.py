@@ -24,13 +24,15 @@ from typing import Any
 
 from ..fields import choice, quantity
 from ..inverter import clarke, inverse_clarke
-from ..signals import State
+from ..signals import Command, State
 from ..svpwm import Modulation, svpwm
+from .base import Controller
 
 __all__ = [
     "CURRENT_TUNINGS",
     "CurrentPI",
     "DQCurrentLoop",
+    "FieldOrientedController",
     "Modulator",
     "current_bandwidth",
     "current_pi",
@@ -41,6 +43,7 @@ __all__ = [
     "technical_optimum",
 ]
 
+NAN = math.nan
 TWO_PI = 2.0 * math.pi
 #: how the current PIs are tuned (module text)
 CURRENT_TUNINGS = ("bandwidth", "technical_optimum")
@@ -189,3 +192,40 @@ class Modulator:
             return mod, mod.applied - ff
         mod = svpwm(u_ab, state.u_dc)
         return mod, mod.applied
+
+
+class FieldOrientedController(Controller):
+    """The FOC families' command: the law's αβ voltage (V) modulated by the :class:`Modulator`
+    ``_modulator``, with the diagnostics every FOC command carries — no finite-control-set
+    decision, the estimate (``est_torque``, ``est_flux``, ``est_flux_angle``), the current
+    reference ``i_ref`` (A, dq) and what :meth:`_mtpa` adds. ``u_ab`` is the voltage the machine
+    got over the last period."""
+
+    _modulator: Modulator
+    i_ref: complex
+    u_ab: complex
+    est_torque: float
+    est_flux: float
+    est_flux_angle: float
+
+    def _mtpa(self) -> tuple[float, float]:
+        """(current angle from the q axis, rad; the MTPA gradient, 1/rad): NaN without MTPA."""
+        return NAN, NAN
+
+    def _command(self, u_ab: complex, state: State, compute_ns: float) -> Command:
+        mod, self.u_ab = self._modulator.modulate(u_ab, state)
+        angle, gradient = self._mtpa()
+        diagnostics = (
+            NAN,  # vector: no finite-control-set decision
+            NAN,  # duty
+            NAN,  # t_u
+            0.0,  # cal: no vector predicted
+            self.est_torque,
+            self.est_flux,
+            self.est_flux_angle,
+            angle,
+            self.i_ref.real,
+            self.i_ref.imag,
+            gradient,
+        )
+        return self.command(state, mod.pulses, diagnostics, compute_ns)

@@ -25,16 +25,18 @@ from ..fields import check_fields, choice, quantity
 from ..inverter import inverse_park, park
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
-from ..signals import Command, PhasePulses, Reference, State
+from ..signals import Reference, State
 from ..svpwm import linear_limit
-from .base import Controller, delay_compensation, pmsm_predicted
+from .base import delay_compensation, pmsm_predicted
 from .foc import (
     CurrentPI,
     DQCurrentLoop,
+    FieldOrientedController,
     Modulator,
     current_bandwidth,
     current_pi,
     current_pi_of,
+    current_tuning,
     dead_time_compensation,
     drop_compensation,
 )
@@ -71,6 +73,7 @@ class FOCParams:
     motor: PMSM
     strategy: str = choice("MTPA law; switchable at run time", tuple(FOC_STRATEGIES))
     current_bandwidth_hz: float = current_bandwidth(300.0)
+    current_tuning: str = current_tuning("bandwidth")
     injection_amplitude: float = quantity(
         "dither amplitude A of the current angle (foc_injection)", "rad", ge=0, le=0.5, default=0.05
     )
@@ -139,7 +142,7 @@ class CurrentLoop(DQCurrentLoop):
         return self.voltage_with(i_ref, i_dq, u_max, decoupling)
 
 
-class FOCController(Controller):
+class FOCController(FieldOrientedController):
     """Field-oriented control of the PMSM: ``step(state k, reference k) -> command k``."""
 
     family = "foc_pmsm"
@@ -172,7 +175,9 @@ class FOCController(Controller):
             max_angle=params.max_current_angle,
             observer_hz=params.injection_observer_hz,
         )
-        self.loop = CurrentLoop(m, ts=ts, bandwidth_hz=params.current_bandwidth_hz)
+        self.loop = CurrentLoop(
+            m, ts=ts, bandwidth_hz=params.current_bandwidth_hz, tuning=params.current_tuning
+        )
         self._k_t = 1.5 * m.p * m.psi_f
         self._coef = PMSMCoefficients.of(m)
         self._modulator = Modulator(
@@ -238,25 +243,5 @@ class FOCController(Controller):
         self.u_ab = inverse_park(u, state.theta_e + 0.5 * w_e * self.ts)
         return self.u_ab
 
-    def _command(self, u_ab: complex, state: State, compute_ns: float) -> Command:
-        mod, self.u_ab = self._modulator.modulate(u_ab, state)
-        gradient = getattr(self.strategy, "gradient", NAN)
-        pulses: PhasePulses = mod.pulses
-        return self.command(
-            state,
-            pulses,
-            (
-                NAN,  # vector: no finite-control-set decision
-                NAN,  # duty
-                NAN,  # t_u
-                0.0,  # cal: no vector predicted
-                self.est_torque,
-                self.est_flux,
-                self.est_flux_angle,
-                self.theta,
-                self.i_ref.real,
-                self.i_ref.imag,
-                gradient,
-            ),
-            compute_ns,
-        )
+    def _mtpa(self) -> tuple[float, float]:
+        return self.theta, getattr(self.strategy, "gradient", NAN)
