@@ -50,7 +50,7 @@ REFUSED = [
      "so --strategy and --switch do not apply"),
     (["run", "im_short", "--external", "torque_controller= "], "an empty command"),
     (["reproduce", "im_paper", "--scheduler", "tcp://x:1"],
-     "--scheduler serves the realism study only"),
+     "--scheduler serves the realism and fronts studies only"),
 ]  # fmt: skip
 
 

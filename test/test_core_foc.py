@@ -268,10 +268,18 @@ def test_a_live_switch_between_mtpa_laws_is_bumpless():
 
 
 def test_the_dither_period_must_be_a_whole_number_of_samples():
+    """For foc_injection, at the start or in a live switch to it; the other laws run at any
+    period (the fronts' carrier sweep), the switch to the injection refused with the reason."""
     sc = load_scenario("ipmsm_mtpa_short")
     bad = dataclasses.replace(sc.controller, injection_hz=300.0)
     with pytest.raises(ConfigError, match=r"injection_hz: 300 Hz gives 33.33 samples"):
         make_controller("foc_pmsm", bad, ts=sc.ts)
+    ctrl = make_controller("foc_pmsm", dataclasses.replace(bad, strategy="foc_formula"), ts=sc.ts)
+    assert "33.33 samples per dither period" in ctrl.refusal("foc_injection")
+    assert ctrl.refusal("foc_zero_d") is None
+    with pytest.raises(ValueError, match=r"injection_hz: 300 Hz gives 33.33 samples"):
+        ctrl.set_strategy("foc_injection")
+    assert ctrl.strategy.name == "foc_formula"
 
 
 def test_a_rotating_reference_leaves_the_amplitude_still():

@@ -11,7 +11,7 @@ import os
 import re
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,9 +26,11 @@ from ..config import (
 )
 from ..core.analysis import load_steps
 from ..core.control.mtpa import mtpa_point
+from ..core.metrics import unequal_switching
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError, PredictiveDriveError
+from ..reports.fronts import FRONTS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, Column, MTPAStudy
 from ..reports.realism import (
     CONDITIONS,
@@ -41,11 +43,13 @@ from ..reports.realism import (
 )
 from .compare import compare
 from .controller_replay import controller_replay
+from .fronts import FRONTS_STUDY, FrontsResult, reproduce_fronts, with_knob_values
 from .report import evaluate
 from .run import run
 from .sweep import Analysis, Case, Row, run_cases
 
 __all__ = [
+    "FRONTS_STUDY",
     "MTPAClaim",
     "MTPARow",
     "MTPAStudyResult",
@@ -236,6 +240,18 @@ class RealismResult(Reproduction):
                 return c
         raise KeyError((scenario, strategy, condition))
 
+    def unequal_fsw(self) -> dict[str, dict[str, str]]:
+        """Per scenario and column, the sentence saying its strategies' switching frequencies
+        differ too much for their ranks to compare them at equal f_sw (columns where they do
+        not are left out)."""
+        out: dict[str, dict[str, str]] = {}
+        for scenario, strategies in self.strategies.items():
+            for c in self.conditions:
+                f = {s: self.cell(scenario, s, c).figures["f_sw_hz"] for s in strategies}
+                if (text := unequal_switching(f)) is not None:
+                    out.setdefault(scenario, {})[c] = text
+        return out
+
     def as_dict(self) -> dict[str, Any]:
         out = {
             **self.head(),
@@ -244,6 +260,7 @@ class RealismResult(Reproduction):
             "hardware": self.hardware,
             "scenario_settings": self.scenario_settings,
             "cells": [dataclasses.asdict(c) for c in self.cells],
+            "unequal_fsw": self.unequal_fsw(),
         }
         if self.figures:
             out["figures"] = [str(p) for p in self.figures]
@@ -319,28 +336,46 @@ def reproduce(
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
     scheduler: str | None = None,
-) -> PaperTableResult | MTPAStudyResult | RealismResult:
+    lambda_sw: Sequence[float] | None = None,
+    fsw_khz: Sequence[float] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study, or the realism study
     (:func:`reproduce_realism`, the one that runs on a Dask cluster at ``scheduler`` too).
     ``duration`` shortens every run (a quick look; the figures then do not compare with the
     paper's). ``figures``: a folder for the runs drawn overlaid (PNG). ``settings``: scenario
     settings applied to every run (e.g. ``{"speed_pi.speed_loop": "immediate"}``), besides each
-    row's own."""
+    row's own. The fronts study (:func:`~.fronts.reproduce_fronts`) takes its knobs' values
+    from ``lambda_sw`` and ``fsw_khz`` where given."""
     settings = dict(settings or {})
+    if scenario != FRONTS_STUDY and (lambda_sw is not None or fsw_khz is not None):
+        raise ConfigError(
+            f"reproduce {scenario}: --lambda-sw and --fsw-khz choose the fronts study's knobs"
+        )
+    if scenario in (REALISM_STUDY, FRONTS_STUDY) and engine != "inprocess":
+        raise ConfigError(
+            f"reproduce {scenario} runs as a sweep (in-process, on the local cores or a Dask "
+            f"cluster), not on the {engine} engine: every engine gives the same figures"
+        )
+    if scenario == FRONTS_STUDY:
+        return reproduce_fronts(
+            duration=duration,
+            jobs=jobs,
+            scheduler=scheduler,
+            figures=figures,
+            settings=settings,
+            study=with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz),
+            progress=progress,
+        )
     if scenario == REALISM_STUDY:
-        if engine != "inprocess":
-            raise ConfigError(
-                f"reproduce realism runs as a sweep (in-process, on the local cores or a Dask "
-                f"cluster), not on the {engine} engine: every engine gives the same figures"
-            )
         return reproduce_realism(
             duration=duration, jobs=jobs, scheduler=scheduler, figures=figures, settings=settings
         )
     if scheduler is not None:
         raise ConfigError(
-            f"reproduce {scenario}: a Dask scheduler serves the realism study only (the "
-            f"tables' bags are drawn and timed here)"
+            f"reproduce {scenario}: a Dask scheduler serves the realism and fronts studies "
+            f"only (the tables' bags are drawn and timed here)"
         )
     if scenario in MTPA_STUDIES:
         study = reproduce_mtpa(
@@ -359,7 +394,7 @@ def reproduce(
     if scenario not in PAPER_TABLES:
         raise ConfigError(
             f"reproduce: no paper table or study {scenario!r}; available: "
-            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY])}"
+            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])}"
         )
     table = PAPER_TABLES[scenario]
     stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"

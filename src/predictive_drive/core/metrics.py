@@ -21,9 +21,11 @@ from .timebase import every_steps, step_index
 from .trace import Trace
 
 __all__ = [
+    "EQUAL_FSW_SHARE",
     "METRICS",
     "Cycles",
     "continuous_current_thd",
+    "continuous_ripple",
     "continuous_rmse",
     "whole_cycles",
     "Metric",
@@ -33,6 +35,7 @@ __all__ = [
     "metric",
     "phase_a_spectrum",
     "step_window",
+    "unequal_switching",
 ]
 
 _KEY = "predictive_drive.metric"
@@ -150,6 +153,11 @@ class Metrics:
         "T_RMSE cont", "N·m", default=math.nan,
         description="sqrt(mean((T_e - T*)^2)) over continuous time, between the samples too",
     )  # fmt: skip
+    t_ripple_cont: float = metric(
+        "T_ripple cont", "N·m", default=math.nan,
+        description="sqrt(mean((T_e - mean T_e)^2)) over continuous time: the ripple about "
+        "the window's mean torque (what a speed loop leaves of the torque error)",
+    )  # fmt: skip
     psi_rmse_cont: float = metric(
         "psi_RMSE cont", "Wb", fmt=".5f", default=math.nan,
         description="sqrt(mean((|psi_s| - psi*)^2)) over continuous time",
@@ -179,6 +187,27 @@ METRICS: dict[str, Metric] = {
         "compute", "µs/step", 1e-3, ".2f", "decision time per step in a tight replay loop"
     ),
 }
+
+
+#: two runs whose switching frequencies differ by more than this share do not compare at
+#: equal switching frequency (docs/reproduction.md#fronts-distortion-against-switching-frequency)
+EQUAL_FSW_SHARE = 0.2
+
+
+def unequal_switching(f_sw_hz: dict[str, float]) -> str | None:
+    """A sentence when runs (label → f_sw, Hz) switch at frequencies more than
+    :data:`EQUAL_FSW_SHARE` apart — their distortion does not compare — else None."""
+    known = {k: v for k, v in f_sw_hz.items() if math.isfinite(v) and v > 0}
+    if len(known) < 2:
+        return None
+    lo, hi = min(known, key=known.__getitem__), max(known, key=known.__getitem__)
+    if known[hi] <= (1.0 + EQUAL_FSW_SHARE) * known[lo]:
+        return None
+    return (
+        f"not comparable at equal switching frequency: f_sw {known[lo] / 1e3:.3g} kHz "
+        f"({lo}) to {known[hi] / 1e3:.3g} kHz ({hi}), {known[hi] / known[lo]:.2g} times; "
+        f"`reproduce fronts` compares strategies at equal f_sw"
+    )
 
 
 def step_window(trace: Trace, t_start: float, t_end: float) -> tuple[int, int]:
@@ -287,6 +316,15 @@ def continuous_rmse(trace: Trace, field: str, ref: str, k0: int, k1: int) -> flo
     return math.sqrt(max(0.0, v)) if v == v else math.nan
 
 
+def continuous_ripple(trace: Trace, field: str, k0: int, k1: int) -> float:
+    """sqrt(mean x² - (mean x)²) over periods k0..k1-1 in continuous time, from the period
+    means of x and x² (NaN without them)."""
+    mean = float(np.mean(trace.col("state", f"{field}_avg")[k0 + 1 : k1 + 1]))
+    square = float(np.mean(trace.col("state", f"{field}_sq_avg")[k0 + 1 : k1 + 1]))
+    v = square - mean * mean
+    return math.sqrt(max(0.0, v)) if v == v else math.nan
+
+
 def continuous_current_thd(trace: Trace, w: Cycles) -> float:
     """The stator current's distortion over the whole cycles ``w``, continuous in time and all
     three phases together: sqrt(mean |i_s|² - |I_1|²) / |I_1|, I_1 the fundamental space vector
@@ -350,6 +388,7 @@ def compute_metrics(
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
         compute_ns_median_by_strategy=by_strategy,
         t_rmse_cont=continuous_rmse(trace, "torque", "torque_ref", k0, k1),
+        t_ripple_cont=continuous_ripple(trace, "torque", k0, k1),
         psi_rmse_cont=continuous_rmse(trace, "flux", "flux_ref", k0, k1),
     )
     if not thd_window:

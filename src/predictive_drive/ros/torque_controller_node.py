@@ -14,7 +14,7 @@ from rclpy.parameter import Parameter
 
 from ..codec import CODECS
 from ..config import FAMILY_KEY, family_of, section_class
-from ..core.control import CONTROLLERS, make_controller, strategy_names
+from ..core.control import CONTROLLERS, make_controller
 from ..core.fields import Quantity, check_fields, quantity
 from ..core.scenario import RunParams
 from ..core.signals import Reference, State
@@ -80,15 +80,13 @@ class TorqueControllerNode(WatchedNode):
         return section_class(self.section, run.machine, self.family)
 
     def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate only: every requested strategy must be one of the family's."""
-        names = strategy_names(self.family)
+        """Validate only: every requested strategy must be one the controller can run
+        (:meth:`~..core.control.base.Controller.refusal`)."""
         for p in params:
-            if p.name == "strategy" and p.value not in names:
+            if p.name == "strategy" and (reason := self.ctrl.refusal(str(p.value))):
                 return SetParametersResult(
                     successful=False,
-                    reason=f"unknown strategy {p.value!r} for controller family "
-                    f"{self.family!r}; valid: {', '.join(names)} (running strategy stays "
-                    f"{self.ctrl.strategy.name})",
+                    reason=f"{reason} (running strategy stays {self.ctrl.strategy.name})",
                 )
         return SetParametersResult(successful=True)
 

@@ -152,8 +152,22 @@ class Controller:
         self._compensate = bool(getattr(params, "delay_compensation", False))
         self.u_in_force = 0j  #: average αβ voltage of the command acting this period, V
 
+    def refusal(self, name: str) -> str | None:
+        """Why strategy ``name`` cannot run in this controller, in words (None: it can). A
+        live switch asks this first and is refused with it, the running strategy staying."""
+        if name not in self.strategies:
+            return (
+                f"unknown strategy {name!r} for controller family {self.family!r}; "
+                f"valid: {', '.join(self.strategies)}"
+            )
+        return None
+
     def set_strategy(self, name: str) -> None:
-        """Switch the control law; takes effect at the next step. ValueError if unknown."""
+        """Switch the control law; takes effect at the next step. ValueError (the
+        :meth:`refusal`) if it cannot run here."""
+        reason = self.refusal(name)
+        if reason is not None:
+            raise ValueError(reason)
         self.strategy: Any = instantiate(self.family, self.strategies, name)
         self._index = float(self._names.index(name))
 

@@ -153,12 +153,16 @@ class FOCController(FieldOrientedController):
     def __init__(self, params: FOCParams, *, ts: float) -> None:
         m = params.motor
         samples = 1.0 / (params.injection_hz * ts)
+        #: why foc_injection cannot run at this period (None: it can); the other laws can
+        self._dither_error: str | None = None
         if abs(samples - round(samples)) > 1e-6 or round(samples) < 4:
-            raise ConfigError(
+            self._dither_error = (
                 f"torque_controller.injection_hz: {params.injection_hz:g} Hz gives "
                 f"{samples:.4g} samples per dither period at Ts = {ts:g} s; it must be a whole "
                 f"number >= 4 (e.g. {1.0 / (round(max(samples, 4)) * ts):g} Hz)"
             )
+            if params.strategy == "foc_injection":
+                raise ConfigError(self._dither_error)
         self._ctx = MTPAContext(
             ts=ts,
             p=m.p,
@@ -167,7 +171,7 @@ class FOCController(FieldOrientedController):
             l_q=m.l_q,
             psi_f=m.psi_f,
             amplitude=params.injection_amplitude,
-            samples=round(samples),
+            samples=max(4, round(samples)),
             gain=params.injection_gain,
             lowpass_hz=params.injection_lowpass_hz,
             form=params.injection_form,
@@ -192,6 +196,11 @@ class FOCController(FieldOrientedController):
         self._i_dq = 0j
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
         super().__init__(params, ts=ts)
+
+    def refusal(self, name: str) -> str | None:
+        if name == "foc_injection" and self._dither_error is not None:
+            return self._dither_error
+        return super().refusal(name)
 
     def set_strategy(self, name: str) -> None:
         super().set_strategy(name)
