@@ -12,7 +12,7 @@ setup: $(STAMP)
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade "pip>=24"
-	$(PY) -m pip install --quiet -e ".[ros,figures,live,sweep,test]"
+	$(PY) -m pip install --quiet -e ".[ros,figures,live,sweep,fast,test]"
 	touch $(STAMP)
 
 run: setup

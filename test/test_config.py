@@ -150,6 +150,11 @@ CASES = {
         r"/drive/plant.u_dc: expected a number, got 'high'",
     ),
     "missing section": (lambda d: d.pop("/drive/speed_pi"), r"missing section '/drive/speed_pi'"),
+    "mixed list": (  # rcl's parser refuses it: the nodes could not start
+        lambda d: _plant(d).update(load_times=[0, 0.15, 0.3]),
+        r"/drive/plant.load_times: \[0, 0.15, 0.3\] mixes float and int; a ROS 2 parameter "
+        r"file's list holds one type",
+    ),
     "unknown family": (
         lambda d: d["/drive/torque_controller"]["ros__parameters"].update(family="dtc_im"),
         r"/drive/torque_controller.family: 'dtc_im' is not one of mptc_im, mptc_pmsm",

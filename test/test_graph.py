@@ -789,5 +789,42 @@ def test_field_orientation_at_a_held_point_through_the_graph_equals_inprocess(tm
     assert g.metrics.f_sw_hz == pytest.approx(1e4, rel=1e-9)
     w = a.col("state", "omega_m")
     assert np.all(w[:500] == 0.0) and np.all(w[500:] == pytest.approx(2772 * np.pi / 30))
-    assert np.all(a.col("reference", "torque_ref") == 3.0)
+    assert np.all(a.col("reference", "torque_ref")[200:] == 3.0)  # ramped up over 10 ms
     assert np.isfinite(g.metrics.t_rmse_cont) and g.metrics.t_rmse_cont != g.metrics.t_rmse
+
+
+@pytest.mark.parametrize("engine", ["ros", "composed"])
+def test_a_horizon_switched_live_lands_at_its_step_and_equals_inprocess(tmp_path, engine):
+    """mptc at N = 3 switched to N = 1 at 0.01 s through the parameter service: exactly at step
+    200, the same run as in-process bit for bit, the spans saying N = 3 then N = 1."""
+    from predictive_drive.api.report import evaluate, strategies_of
+
+    kw = dict(duration=0.02, settings={"torque_controller.horizon": 3},
+              switches=[(0.01, "horizon=1")])  # fmt: skip
+    g = run("ipmsm_short", engine=engine, out=tmp_path / "g", **kw)
+    i = run("ipmsm_short", engine="inprocess", out=tmp_path / "i", **kw)
+    a, info = read_bag(g.bag)
+    b, _ = read_bag(i.bag)
+    assert info.complete and a.steps == b.steps == 400
+    assert_same_run(a, b)
+    spans = [(s.strategy, s.first, s.last) for s in strategies_of(evaluate(g.bag))]
+    assert spans == [("mptc N=3", 0, 199), ("mptc", 200, 399)]
+
+
+def test_direct_mpc_at_a_long_horizon_through_the_graph_equals_inprocess(tmp_path):
+    """direct_mpc (sphere decoding) at N = 5 through the four processes: the same run as
+    in-process, bit for bit, with finite metrics; replayed into the controller node, every
+    command again."""
+    from predictive_drive.api.replay import replay_into
+
+    kw = dict(duration=0.01, settings={"torque_controller.horizon": 5})
+    g = run("ipmsm_steady_mpc", out=tmp_path / "g", **kw)
+    i = run("ipmsm_steady_mpc", engine="inprocess", out=tmp_path / "i", **kw)
+    a, info = read_bag(g.bag)
+    b, _ = read_bag(i.bag)
+    assert info.complete and a.steps == b.steps == 200
+    assert_same_run(a, b)
+    assert np.all(a.col("command", "horizon") == 5.0) and a.col("command", "cal").min() >= 2
+    assert np.isfinite(g.metrics.t_rmse) and np.isfinite(g.metrics.f_sw_hz)
+    again = replay_into(g.bag, out=tmp_path / "again")
+    assert (again.vector_agreement, again.pulse_agreement) == (1.0, 1.0)

@@ -218,6 +218,13 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if origin is tuple:
         if not isinstance(value, list):
             raise ConfigError(f"{where}: expected a list of numbers, got {value!r}")
+        kinds = {type(v) for v in value}
+        if len(kinds) > 1:  # rcl's parameter-file parser refuses a mixed sequence
+            raise ConfigError(
+                f"{where}: {value!r} mixes "
+                f"{' and '.join(sorted(k.__name__ for k in kinds))}; a ROS 2 parameter file's "
+                f"list holds one type (write 0.0, not 0, beside 0.5)"
+            )
         return tuple(
             _coerce(v, typing.get_args(hint)[0], f"{where}[{i}]") for i, v in enumerate(value)
         )

@@ -42,7 +42,14 @@ from .core.commands import COMMAND_CONTRACT
 from .core.control import strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
-from .core.signals import COMMAND_INDEX, STATE_INDEX, strategy_name
+from .core.signals import (
+    COMMAND_INDEX,
+    STATE_INDEX,
+    span_key,
+    span_name,
+    span_parts,
+    strategy_name,
+)
 from .core.timebase import every_steps
 from .interface import (
     CLOCK_PERIOD,
@@ -63,6 +70,7 @@ __all__ = [
     "diagnostics_message",
     "scenario_of",
     "spans_from_json",
+    "command_span_keys",
     "strategy_spans",
     "tool_every",
     "tool_messages",
@@ -157,19 +165,41 @@ def spans_from_json(text: str) -> list[StrategySpan]:
 
 
 def strategy_spans(
-    strategy: Iterable[float], names: tuple[str, ...], k0: int = 0
+    keys: Iterable[float], names: tuple[str, ...], k0: int = 0
 ) -> list[StrategySpan]:
-    """The spans of a run's per-step strategy index (the command's ``strategy`` field)."""
+    """The spans of a run's per-step span keys (:func:`command_span_keys`: the command's
+    ``strategy`` and ``horizon``)."""
     spans, k = [], k0
-    for name, steps in itertools.groupby(strategy, key=lambda i: strategy_name(names, i)):
+    for name, steps in itertools.groupby(keys, key=lambda i: span_name(names, i)):
         n = sum(1 for _ in steps)
         spans.append(StrategySpan(name, k, k + n - 1))
         k += n
     return spans
 
 
-#: the strategy index before the first span: no command's (theirs are >= 0, or NaN)
+def command_span_keys(commands: np.ndarray) -> np.ndarray:
+    """The span key (:func:`~.core.signals.span_key`) of each row of commands."""
+    return np.asarray(
+        span_key(commands[:, COMMAND_INDEX.strategy], commands[:, COMMAND_INDEX.horizon])
+    )
+
+
+def _row_key(row: Any) -> float:
+    """The span key of one command row."""
+    return float(span_key(float(row[COMMAND_INDEX.strategy]), float(row[COMMAND_INDEX.horizon])))
+
+
+#: the span key before the first span: no command's (theirs are >= 0, or NaN)
 _NO_SPAN = -1.0
+
+
+def _changed(names: tuple[str, ...], before: float, key: float) -> list[tuple[str, Any]]:
+    """The parameter change that took a run from span key ``before`` to ``key``: the
+    strategy's name, or the horizon alone when the strategy stayed."""
+    (s0, h0), (s1, h1) = span_parts(before), span_parts(key)
+    if s0 == s1 and h0 != h1:
+        return [("horizon", int(h1))]
+    return [("strategy", strategy_name(names, s1))]
 
 
 def _same_strategy(a: float, b: float) -> bool:
@@ -287,7 +317,7 @@ class RunRecorder:
         commanded = min(steps, len(c))
         views = [memoryview(rows) for rows in (states, references, commands)]
         sizes = [8 * width for width in self._widths]
-        strategy = c[:, COMMAND_INDEX.strategy]
+        strategy = command_span_keys(c)
         i = 0
         while i < commanded:
             if self._group is None or not _same_strategy(float(strategy[i]), self._index):
@@ -367,7 +397,7 @@ class RunRecorder:
         if t > self.last_t:
             self.last_t = t
         k = int(cmd[K])
-        index = cmd[COMMAND_INDEX.strategy]
+        index = _row_key(cmd)
         if _same_strategy(index, self._index) and k == self._through + 1:
             self._through = k
         else:
@@ -408,7 +438,7 @@ class RunRecorder:
                 if t > self.last_t:
                     self.last_t = t
                 if record == "command":
-                    self._span(int(row[K]), row[COMMAND_INDEX.strategy])
+                    self._span(int(row[K]), _row_key(row))
                 snap = live(record, row)
                 if snap is not None:
                     self._diagnose(snap)
@@ -543,7 +573,7 @@ class RunRecorder:
     def _spans_of(self, commands: np.ndarray) -> None:
         """The strategy spans of consecutive commands (:meth:`_span` of each, at once when
         they go on the span in force)."""
-        index = commands[:, COMMAND_INDEX.strategy]
+        index = command_span_keys(commands)
         same = np.isnan(index) if math.isnan(self._index) else index == self._index
         k = commands[:, K]
         if same.all() and k[0] == self._through + 1 and np.all(np.diff(k) == 1):
@@ -634,18 +664,21 @@ class RunRecorder:
         )
 
     def _span(self, k: int, index: float) -> None:
-        """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process
-        with the parameter event the controller node would publish)."""
+        """Command k ran the strategy (and horizon) of span key ``index``: the span goes on, or
+        a new one starts (in-process with the parameter event the controller node would
+        publish: the strategy's, or the horizon's when only the horizon changed)."""
         if _same_strategy(index, self._index) and k == self._through + 1:
             self._through = k
             return
         self._seal()
+        before = self._index
         self._index, self._through = index, k
-        name = strategy_name(self.strategy_names, index)
+        name = span_name(self.strategy_names, index)
         self._spans.append(StrategySpan(name, k, k))
         if k > 0 and self._events:
             t = k * self.ts
-            data = encode_parameter_event(t, node_name("torque_controller"), [("strategy", name)])
+            changed = _changed(self.strategy_names, before, index)
+            data = encode_parameter_event(t, node_name("torque_controller"), changed)
             self._hold("parameter_events", stamp_ns(t), data)
 
     def _seal(self) -> None:

@@ -14,7 +14,13 @@ from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..readback import BagInfo, read_bag
-from ..recording import StrategySpan, scenario_of, spans_from_json, strategy_spans
+from ..recording import (
+    StrategySpan,
+    command_span_keys,
+    scenario_of,
+    spans_from_json,
+    strategy_spans,
+)
 
 __all__ = [
     "Evaluation",
@@ -226,7 +232,7 @@ def strategies_of(ev: Evaluation) -> list[StrategySpan]:
     if "strategies" in ev.info.custom:
         return spans_from_json(ev.info.custom["strategies"])
     tr = ev.trace
-    return strategy_spans(tr.col("command", "strategy"), tr.strategy_names)
+    return strategy_spans(command_span_keys(tr.command), tr.strategy_names)
 
 
 def steps_of(ev: Evaluation) -> list[LoadStep]:

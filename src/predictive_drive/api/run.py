@@ -15,8 +15,9 @@ from .. import interrupts
 from ..bag import BagWriter, check_new_bag, claim_bag_dir
 from ..config import load_scenario, scenario_with
 from ..core.control import EXTERNAL, strategy_names
+from ..core.control.base import parse_switch
 from ..core.metrics import Metrics
-from ..core.runner import run_inprocess
+from ..core.runner import build_controller, run_inprocess
 from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import ConfigError, Interrupted
@@ -60,19 +61,30 @@ class RunResult:
 
 
 def switch_steps(sc: Scenario, switches: Sequence[tuple[float, str]]) -> list[tuple[int, str]]:
-    """``--switch T:STRATEGY`` pairs → (step, strategy); ConfigError for an unknown strategy or
-    a time outside the run."""
+    """``--switch T:STRATEGY`` (or ``T:horizon=N``) pairs → (step, switch); ConfigError for an
+    unknown strategy, a horizon the law in force cannot take (each switch checked after the ones
+    before it, by the controller itself), or a time outside the run."""
     names = strategy_names(sc.family)
     out = []
-    in_force = sc.strategy
+    ctrl = build_controller(sc) if switches and not sc.external else None
+    in_force: dict[str, Any] = {"strategy": sc.strategy, "horizon": getattr(ctrl, "horizon", 1)}
     for t, name in sorted(switches):
-        if name not in names:
+        try:
+            key, value = parse_switch(name)
+        except ValueError as e:
+            raise ConfigError(f"--switch {t}:{e}") from None
+        if key == "strategy" and name not in names:
             raise ConfigError(f"--switch {t}:{name}: unknown strategy; valid: {', '.join(names)}")
         if not (0 <= t < sc.run.duration):
             raise ConfigError(f"--switch {t}:{name}: time must lie in [0, {sc.run.duration}) s")
-        if name == in_force:
-            raise ConfigError(f"--switch {t}:{name}: {name} is already the strategy then")
-        in_force = name
+        if value == in_force[key]:
+            raise ConfigError(f"--switch {t}:{name}: {value} is already the {key} then")
+        reason = ctrl.switch_refusal(key, value) if ctrl is not None else None
+        if reason is not None:
+            raise ConfigError(f"--switch {t}:{name}: {reason}")
+        if ctrl is not None:
+            ctrl.switch(key, value)
+        in_force[key] = value
         out.append((step_index(t, sc.ts), name))
     return out
 

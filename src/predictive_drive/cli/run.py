@@ -22,7 +22,7 @@ def _switch(text: str) -> tuple[float, str]:
         return float(t), name
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected T:STRATEGY (e.g. 2.5:mptc), got {text!r}"
+            f"expected T:STRATEGY or T:horizon=N (e.g. 2.5:mptc), got {text!r}"
         ) from None
 
 
@@ -98,7 +98,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--switch", action="append", type=_switch, metavar="T:STRATEGY",
-        help="switch the strategy at simulated time T (repeatable)",
+        help="switch the strategy at simulated time T, or its horizon (T:horizon=N) "
+        "(repeatable)",
     )  # fmt: skip
 
 

@@ -12,6 +12,7 @@ import dataclasses
 from collections.abc import Callable, Iterable, Sequence
 
 from .control import Controller, make_controller, strategy_names
+from .control.base import parse_switch
 from .control.speed_pi import SpeedPI
 from .plant import InverterPlant, make_plant
 from .scenario import PlantParams, Scenario
@@ -99,7 +100,8 @@ def run_inprocess(
 ) -> Trace:
     """Run ``steps`` control periods (default: the scenario's duration) and return the trace.
 
-    ``switches``: (step, strategy) pairs; the strategy changes at that step boundary.
+    ``switches``: (step, switch) pairs — a strategy's name or ``horizon=N``
+    (:func:`~.control.base.parse_switch`); it takes effect at that step boundary.
     """
     n = scenario.run.steps if steps is None else steps
     c = build(scenario)
@@ -129,7 +131,7 @@ def run_inprocess(
         for k in range(n):
             if k >= next_switch:
                 while pending and pending[0][0] <= k:
-                    ctrl.set_strategy(pending.pop(0)[1])
+                    ctrl.switch(*parse_switch(pending.pop(0)[1]))
                 next_switch = pending[0][0] if pending else n
             cmd = ctrl.step(state, ref)
             s_add(s_pack(*state))

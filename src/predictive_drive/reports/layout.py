@@ -34,8 +34,9 @@ PLOTS: dict[str, list[tuple[str, str]]] = {
         ("command", "i_d_ref"),
         ("command", "i_q_ref"),
     ],
-    "strategy (index), vector, current angle (rad)": [
+    "strategy (index), horizon, vector, current angle (rad)": [
         ("command", "strategy"),
+        ("command", "horizon"),
         ("command", "vector"),
         ("command", "current_angle"),
     ],

@@ -16,6 +16,7 @@ from collections.abc import Mapping
 from time import perf_counter_ns
 from typing import Any, ClassVar, NamedTuple, Protocol
 
+from ...errors import ConfigError
 from ..fields import flag, quantity
 from ..inverter import VECTOR_STATES, active_then_zero, clarke, vector_voltages
 from ..machines import Machine
@@ -23,7 +24,13 @@ from ..machines.pmsm import PMSMCoefficients, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
 
 __all__ = [
+    "AFTER",
+    "NO_EFFORT",
+    "SWITCHABLE",
     "Controller",
+    "check_horizon",
+    "horizon_field",
+    "parse_switch",
     "SwitchingEffort",
     "lambda_sw_field",
     "pmsm_predicted",
@@ -105,6 +112,60 @@ class SwitchingEffort:
         return self.full[code][vector] if fraction >= 1.0 else self.then_zero[code][vector]
 
 
+#: what a running controller lets a live parameter change: its law and, for families with long
+#: horizons, the horizon N (docs/physics.md#long-horizons)
+SWITCHABLE = ("strategy", "horizon")
+
+
+def horizon_field(strategies: str, maximum: int) -> Any:
+    """The ``horizon`` field of a family whose laws ``strategies`` look N periods ahead."""
+    return quantity(
+        f"prediction horizon N, periods the cost sums over ({strategies}; 1: one step, the "
+        f"papers' law); switchable at run time",
+        ge=1,
+        le=maximum,
+        integer=True,
+        default=1,
+    )
+
+
+def check_horizon(params: Any, strategies: tuple[str, ...]) -> None:
+    """ConfigError if ``params`` (a family's settings) give a horizon to a law without one."""
+    if params.horizon > 1 and params.strategy not in strategies:
+        raise ConfigError(
+            f"torque_controller.horizon {params.horizon}: {params.strategy} looks one period "
+            f"ahead; only {', '.join(strategies)} take a horizon (1..N)"
+        )
+
+
+def parse_switch(text: str) -> tuple[str, Any]:
+    """A switch as the command line and the launcher write it: a strategy's name, or
+    ``horizon=N`` → (parameter, value); ValueError for a value that is not a whole number."""
+    key, sep, value = text.partition("=")
+    if not sep:
+        return "strategy", text
+    if key != "horizon":
+        raise ValueError(
+            f"{text!r}: a switch is a strategy's name or horizon=N (the settings a running "
+            f"controller changes: {', '.join(SWITCHABLE)})"
+        )
+    try:
+        return key, int(value)
+    except ValueError:
+        raise ValueError(f"{text!r}: horizon=N takes a whole number of periods") from None
+
+
+#: the switching effort's costs when λ_sw = 0 (adding 0.0 changes no cost)
+NO_EFFORT = (0.0,) * 7
+#: the switching state's code after vector n for the whole period from the state of code c
+#: (``AFTER[c][n]``): the vector's, or for V0 the zero vector nearer to c
+AFTER = tuple(
+    tuple((7 if bin(c).count("1") >= 2 else 0) if n == 0 else SwitchingEffort.code(
+        VECTOR_STATES[n]) for n in range(7))
+    for c in range(8)
+)  # fmt: skip
+
+
 class Strategy(Protocol):
     """A control law of a family; each family states what its laws are asked (``decide``)."""
 
@@ -142,11 +203,15 @@ class Controller:
     machine: ClassVar[Machine]
     params_type: ClassVar[type]
     strategies: ClassVar[Mapping[str, type]]
+    #: the strategies that look ``horizon`` periods ahead, and the largest horizon
+    horizon_strategies: ClassVar[tuple[str, ...]] = ()
+    max_horizon: ClassVar[int] = 1
 
     def __init__(self, params: Any, *, ts: float) -> None:
         self.params = params
         self.ts = ts
         self._names = tuple(self.strategies)
+        self.horizon = int(getattr(params, "horizon", 1))  #: N, periods
         self.set_strategy(params.strategy)
         self._u_dc = NAN
         self._compensate = bool(getattr(params, "delay_compensation", False))
@@ -160,7 +225,57 @@ class Controller:
                 f"unknown strategy {name!r} for controller family {self.family!r}; "
                 f"valid: {', '.join(self.strategies)}"
             )
+        if self.horizon > 1 and name not in self.horizon_strategies:
+            return (
+                f"{name} looks one period ahead, and torque_controller.horizon is "
+                f"{self.horizon} (a horizon for {', '.join(self.horizon_strategies)}): set "
+                f"horizon 1 first"
+            )
         return None
+
+    def horizon_refusal(self, value: Any) -> str | None:
+        """Why the horizon cannot become ``value`` (None: it can)."""
+        if not self.horizon_strategies:
+            return (
+                f"controller family {self.family!r} has no horizon: its laws look one period ahead"
+            )
+        if isinstance(value, bool) or not isinstance(value, int):
+            return f"torque_controller.horizon must be a whole number of periods, got {value!r}"
+        if not 1 <= value <= self.max_horizon:
+            return f"torque_controller.horizon must be 1..{self.max_horizon} (periods), got {value}"
+        if value > 1 and self.strategy.name not in self.horizon_strategies:
+            return (
+                f"torque_controller.horizon {value}: {self.strategy.name} looks one period "
+                f"ahead; only {', '.join(self.horizon_strategies)} take a horizon"
+            )
+        return None
+
+    def switch_refusal(self, key: str, value: Any) -> str | None:
+        """Why a live change of ``key`` (one of :data:`SWITCHABLE`) to ``value`` cannot be made
+        (None: it can); the running setting stays."""
+        if key == "strategy":
+            return self.refusal(str(value))
+        return self.horizon_refusal(value)
+
+    def switch(self, key: str, value: Any) -> None:
+        """Change ``key`` (one of :data:`SWITCHABLE`) at the next step; ValueError (the
+        :meth:`switch_refusal`) if it cannot."""
+        if key == "strategy":
+            self.set_strategy(str(value))
+            return
+        reason = self.horizon_refusal(value)
+        if reason is not None:
+            raise ValueError(reason)
+        self.horizon = int(value)
+        self._horizon_set()
+
+    def _horizon_set(self) -> None:
+        """The horizon changed (a family with a plan from the last decision drops it)."""
+
+    @property
+    def law_horizon(self) -> float:
+        """The horizon of the law in force (NaN for a law without one): the command's field."""
+        return float(self.horizon) if self.strategy.name in self.horizon_strategies else NAN
 
     def set_strategy(self, name: str) -> None:
         """Switch the control law; takes effect at the next step. ValueError (the
@@ -170,6 +285,7 @@ class Controller:
             raise ValueError(reason)
         self.strategy: Any = instantiate(self.family, self.strategies, name)
         self._index = float(self._names.index(name))
+        self._horizon_set()
 
     def _dc_link(self, u_dc: float) -> None:
         """The measured DC-link voltage (V) changed (and at the first step)."""
@@ -268,6 +384,7 @@ class VectorController(Controller):
                 fraction,
                 t_u,
                 float(cal),
+                self.law_horizon,
                 self.est_torque,
                 self.est_flux,
                 self.est_flux_angle,

@@ -208,6 +208,10 @@ class FieldOrientedController(Controller):
     est_flux: float
     est_flux_angle: float
 
+    def _cal(self) -> float:
+        """The command's ``cal``: no vector predicted (a law that searches says how much)."""
+        return 0.0
+
     def _mtpa(self) -> tuple[float, float]:
         """(current angle from the q axis, rad; the MTPA gradient, 1/rad): NaN without MTPA."""
         return NAN, NAN
@@ -219,7 +223,8 @@ class FieldOrientedController(Controller):
             NAN,  # vector: no finite-control-set decision
             NAN,  # duty
             NAN,  # t_u
-            0.0,  # cal: no vector predicted
+            self._cal(),
+            self.law_horizon,
             self.est_torque,
             self.est_flux,
             self.est_flux_angle,

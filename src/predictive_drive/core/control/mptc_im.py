@@ -13,18 +13,24 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.induction import InductionCoefficients, InductionMotor
 from ..signals import Reference, State, new_record
 from .base import (
+    AFTER,
+    NO_EFFORT,
     Decision,
     SwitchingEffort,
     VectorController,
+    check_horizon,
     delay_compensation,
+    horizon_field,
     lambda_sw_field,
 )
+from .search import Expand, branch_and_bound
 
 __all__ = [
     "A0_FORMS",
@@ -73,6 +79,8 @@ class IMPrediction:
         "code",
         "sw",
         "sw_zero",
+        "horizon",
+        "wr",
     )
 
     def __init__(
@@ -91,9 +99,10 @@ class IMPrediction:
         #: the switching effort (None: λ_sw = 0) and, per candidate, its cost from the state in
         #: force (``code``): ``sw`` for the whole period, ``sw_zero`` then the zero vector
         self.effort = effort
+        self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
         self.code = 0
-        self.sw: tuple[float, ...] = _NO_EFFORT
-        self.sw_zero: tuple[float, ...] = _NO_EFFORT
+        self.sw: tuple[float, ...] = NO_EFFORT
+        self.sw_zero: tuple[float, ...] = NO_EFFORT
         self.switching((0, 0, 0))
 
     def switching(self, switches: tuple[int, int, int]) -> None:
@@ -101,7 +110,7 @@ class IMPrediction:
         e = self.effort
         if e is None:
             self.code = 0
-            self.sw = self.sw_zero = _NO_EFFORT
+            self.sw = self.sw_zero = NO_EFFORT
             return
         self.code = code = e.code(switches)
         self.sw, self.sw_zero = e.full[code], e.then_zero[code]
@@ -110,6 +119,7 @@ class IMPrediction:
         a_ii, b_ip, cw, rs, p, tk, _, _ = self.c
         ts = self.ts
         wr = p * omega_m
+        self.wr = wr
         self.i = i
         self.psi = psi
         if volts is not self.volts:
@@ -127,6 +137,10 @@ class IMPrediction:
         self.gain_i = ts * cw
         self._z = i - cw * psi
 
+    def root(self) -> tuple[complex, complex, int]:
+        """The search's root (:func:`horizon_stages`): the state the law decides from."""
+        return self.i, self.psi, self.code
+
     def a_u(self, u: complex) -> float:
         """Voltage-dependent part of dT_e/dt, N·m/s per applied vector u (paper 000 eq 10)."""
         z = self._z
@@ -142,12 +156,25 @@ class IMPrediction:
 
 
 class MPTC:
-    """Conventional FCS-MPTC: 7 vectors, g = |T* - T(k+1)| + λ·|ψ* - |ψ(k+1)||, argmin for Ts."""
+    """Conventional FCS-MPTC: 7 vectors, g = |T* - T(k+1)| + λ·|ψ* - |ψ(k+1)||, argmin for Ts.
+    Over a horizon of N > 1 periods the stage costs of a sequence of vectors are summed and the
+    first vector of the best sequence is applied, found by branch and bound (:mod:`.search`),
+    the last optimum shifted as its first bound (``plan``)."""
 
     name = "mptc"
 
+    def __init__(self) -> None:
+        self.plan: tuple[int, ...] = ()
+
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        return _FULL_PERIOD[_argmin_full_period(m, torque_ref, flux_ref)]
+        if m.horizon == 1:
+            return _FULL_PERIOD[_argmin_full_period(m, torque_ref, flux_ref)]
+        guess = (*self.plan[1:], self.plan[-1]) if self.plan else ()
+        found = branch_and_bound(
+            horizon_stages(m, torque_ref, flux_ref), m.root(), m.horizon, guess
+        )
+        self.plan = found.sequence
+        return new_record(Decision, (found.sequence[0], 1.0, NAN, found.nodes))
 
 
 class MPTCDB:
@@ -212,8 +239,38 @@ class DBMPTC:
 _FULL_PERIOD = tuple(Decision(n, 1.0, NAN, 7) for n in range(7))
 
 
-#: the switching effort's costs when λ_sw = 0 (adding 0.0 changes no cost)
-_NO_EFFORT = (0.0,) * 7
+#: the largest horizon mptc takes (its tree has 7^N leaves), and the laws that take one
+MAX_HORIZON = 6
+HORIZON_STRATEGIES = ("mptc",)
+
+
+def horizon_stages(m: IMPrediction, torque_ref: float, flux_ref: float) -> Expand:
+    """mptc's stage over a horizon (:data:`~.search.Expand`): from a node (i_s, ψ_s, code of
+    the switching state in force) each vector's predicted node one period on — the one-step
+    law's forward Euler with ω frozen, the same arithmetic — and its stage cost
+    |T* - T| + λ_ψ |ψ* - |ψ|| + λ_sw × commutations."""
+    a_ii, b_ip, cw, rs, p, tk, _, _ = m.c
+    ts, lam, volts = m.ts, m.lam, m.volts
+    a = complex(a_ii, m.wr)
+    b = complex(b_ip, -m.wr * cw)
+    gain_i = ts * cw
+    full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
+
+    def expand(node: tuple[complex, complex, int]) -> list[tuple[float, int, Any]]:
+        i, psi, code = node
+        i_free = i + ts * (a * i + b * psi)
+        psi_free = psi - ts * rs * i
+        sw, after = full[code], AFTER[code]
+        out = []
+        for n, u in enumerate(volts):
+            i1 = i_free + gain_i * u
+            p1 = psi_free + ts * u
+            t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
+            g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + sw[n]
+            out.append((g, n, (i1, p1, after[n])))
+        return out
+
+    return expand
 
 
 def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> int:
@@ -270,6 +327,7 @@ class InductionControllerParams:
     strategy: str = choice("control law; switchable at run time", tuple(IM_STRATEGIES))
     lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
     lambda_sw: float = lambda_sw_field("N·m")
+    horizon: int = horizon_field("mptc", MAX_HORIZON)
     soft_start_flux: float = quantity(
         "soft start until the flux estimate first reaches this", "Wb", ge=0, default=0.65
     )
@@ -285,6 +343,7 @@ class InductionControllerParams:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        check_horizon(self, HORIZON_STRATEGIES)
 
 
 class InductionController(VectorController):
@@ -299,6 +358,8 @@ class InductionController(VectorController):
     machine = Machine.INDUCTION
     params_type = InductionControllerParams
     strategies = IM_STRATEGIES
+    horizon_strategies = HORIZON_STRATEGIES
+    max_horizon = MAX_HORIZON
 
     def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
         c = InductionCoefficients.of(params.motor)
@@ -338,6 +399,7 @@ class InductionController(VectorController):
         m = self._pred
         psi = self._psi_next if self._compensate else self.psi_hat
         m.prepare(i, psi, state.omega_m, self._volts)  # keeps i for _applied
+        m.horizon = self.horizon
         if m.effort is not None:
             m.switching(self.switches)
         self.est_torque = m.te
