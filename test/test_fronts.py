@@ -56,6 +56,14 @@ SMALL = {
         (
             Curve("mptc", "ipmsm_steady", "torque_controller.lambda_sw", (0.0, 0.03)),
             Curve("foc_formula", "ipmsm_steady_foc", "ts", (5e-4, 2.5e-4), label="foc_mtpa"),
+            Curve(
+                "mptc",
+                "ipmsm_steady",
+                "torque_controller.lambda_sw",
+                (0.01,),
+                {"torque_controller.horizon": 2},
+                label="mptc N=2",
+            ),  # fmt: skip
         ),
         ("mptc",),
         "a test",
@@ -73,7 +81,9 @@ def test_a_small_study_traces_each_curve_over_its_knob(small):
     held the operating point; the table interpolates each front at the common frequencies and
     ranks the curves by what it interpolated."""
     (t,) = small.points
-    mptc, foc = t.curves
+    mptc, foc, longer = t.curves
+    assert longer.name == "mptc N=2" and longer.settings == {"torque_controller.horizon": 2}
+    assert 1e3 < longer.points[0].figures["f_sw_hz"] < 1e4
     assert [p.value for p in mptc.points] == [0.0, 0.03]
     f_mptc = [p.figures["f_sw_hz"] for p in mptc.points]
     assert f_mptc[0] > f_mptc[1] > 1e3
@@ -111,17 +121,23 @@ def test_the_knobs_values_are_checked_before_anything_runs(monkeypatch):
         reproduce("fronts", settings={"plant.dead_time": 1e-5})
     with pytest.raises(ConfigError, match="not on the ros engine"):
         reproduce("fronts", engine="ros")
-    with pytest.raises(ConfigError, match="--lambda-sw and --fsw-khz choose the fronts"):
+    with pytest.raises(ConfigError, match="--lambda-sw, --lambda-u and --fsw-khz choose the"):
         reproduce("im_paper", lambda_sw=[0.1])
     assert not ran
 
 
 def test_given_values_replace_every_curves_own():
-    study = with_knob_values(FRONTS, lambda_sw=[0.0, 0.1], fsw_khz=[2.0, 10.0])
+    study = with_knob_values(FRONTS, lambda_sw=[0.0, 0.1], fsw_khz=[2.0, 10.0], lambda_u=[0.5])
+    wants = {
+        "torque_controller.lambda_sw": (0.0, 0.1),
+        "torque_controller.lambda_u": (0.5,),
+        "ts": (5e-4, 1e-4),
+    }
     for op in study.values():
         for c in op.curves:
-            want = (0.0, 0.1) if c.knob == "torque_controller.lambda_sw" else (5e-4, 1e-4)
-            assert c.values == pytest.approx(want)
+            assert c.values == pytest.approx(wants[c.knob])
+    with pytest.raises(ConfigError, match="--lambda-u: 0.0 is outside 1e-09..1000"):
+        with_knob_values(FRONTS, lambda_u=[0.0])
 
 
 def test_the_command_refuses_a_knob_of_another_reproduction(capsys):

@@ -177,11 +177,17 @@ def with_knob_values(
     *,
     lambda_sw: Sequence[float] | None = None,
     fsw_khz: Sequence[float] | None = None,
+    lambda_u: Sequence[float] | None = None,
 ) -> dict[str, OperatingPoint]:
-    """The study with every finite-control-set curve traced over ``lambda_sw`` and every FOC
-    curve over the carriers ``fsw_khz`` (ts = 1/f_sw) instead of its own values; ConfigError
-    names a value outside the knob's range (:data:`~..reports.fronts.KNOBS`)."""
-    given = {"torque_controller.lambda_sw": lambda_sw, "ts": None}
+    """The study with every finite-control-set curve traced over ``lambda_sw``, every
+    direct_mpc curve over ``lambda_u`` and every FOC curve over the carriers ``fsw_khz``
+    (ts = 1/f_sw) instead of its own values; ConfigError names a value outside the knob's
+    range (:data:`~..reports.fronts.KNOBS`)."""
+    given = {
+        "torque_controller.lambda_sw": lambda_sw,
+        "torque_controller.lambda_u": lambda_u,
+        "ts": None,
+    }
     if fsw_khz is not None:
         for f in fsw_khz:
             if not (math.isfinite(f) and f > 0):
@@ -208,7 +214,8 @@ def with_knob_values(
 
 
 def _knob_option(key: str) -> str:
-    return "--lambda-sw" if key == "torque_controller.lambda_sw" else "--fsw-khz"
+    return {"torque_controller.lambda_sw": "--lambda-sw", "torque_controller.lambda_u":
+            "--lambda-u"}.get(key, "--fsw-khz")  # fmt: skip
 
 
 def _plans(
@@ -219,8 +226,8 @@ def _plans(
     clash = sorted(set(settings) & set(KNOBS))
     if clash:
         raise ConfigError(
-            f"--set {clash[0]}: the fronts study sweeps it itself (--lambda-sw, --fsw-khz "
-            f"choose its values)"
+            f"--set {clash[0]}: the fronts study sweeps it itself (--lambda-sw, --lambda-u, "
+            f"--fsw-khz choose its values)"
         )
     plans = []
     for name, op in study.items():

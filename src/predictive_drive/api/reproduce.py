@@ -338,6 +338,7 @@ def reproduce(
     scheduler: str | None = None,
     lambda_sw: Sequence[float] | None = None,
     fsw_khz: Sequence[float] | None = None,
+    lambda_u: Sequence[float] | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
@@ -349,9 +350,10 @@ def reproduce(
     row's own. The fronts study (:func:`~.fronts.reproduce_fronts`) takes its knobs' values
     from ``lambda_sw`` and ``fsw_khz`` where given."""
     settings = dict(settings or {})
-    if scenario != FRONTS_STUDY and (lambda_sw is not None or fsw_khz is not None):
+    if scenario != FRONTS_STUDY and any(x is not None for x in (lambda_sw, fsw_khz, lambda_u)):
         raise ConfigError(
-            f"reproduce {scenario}: --lambda-sw and --fsw-khz choose the fronts study's knobs"
+            f"reproduce {scenario}: --lambda-sw, --lambda-u and --fsw-khz choose the fronts "
+            f"study's knobs"
         )
     if scenario in (REALISM_STUDY, FRONTS_STUDY) and engine != "inprocess":
         raise ConfigError(
@@ -365,7 +367,7 @@ def reproduce(
             scheduler=scheduler,
             figures=figures,
             settings=settings,
-            study=with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz),
+            study=with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz, lambda_u=lambda_u),
             progress=progress,
         )
     if scenario == REALISM_STUDY:

@@ -56,6 +56,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "traced over (default: each curve's own)",
     )  # fmt: skip
     p.add_argument(
+        "--lambda-u", metavar="V1,V2,...", type=_numbers,
+        help="fronts only: the switching weights every direct_mpc curve is traced over "
+        "(default: each curve's own)",
+    )  # fmt: skip
+    p.add_argument(
         "--fsw-khz", metavar="F1,F2,...", type=_numbers,
         help="fronts only: the carrier frequencies (kHz; ts = 1/f_sw) every FOC curve is "
         "traced over (default 0.5,1,2,5,10,20)",
@@ -82,7 +87,10 @@ def main(a: argparse.Namespace) -> int:
         refuse(a, f"serves the realism and fronts studies only, not {a.scenario}", "scheduler")
         refuse(a, f"runs the realism and fronts studies only, not {a.scenario}", "jobs")
     if a.scenario != FRONTS_STUDY:
-        refuse(a, f"chooses the fronts study's knobs, not {a.scenario}'s", "lambda_sw", "fsw_khz")
+        refuse(
+            a, f"chooses the fronts study's knobs, not {a.scenario}'s",
+            "lambda_sw", "lambda_u", "fsw_khz",
+        )  # fmt: skip
     settings = single_settings(a.set)
     d = reproduce(
         a.scenario,
@@ -95,6 +103,7 @@ def main(a: argparse.Namespace) -> int:
         jobs=a.jobs,
         lambda_sw=a.lambda_sw,
         fsw_khz=a.fsw_khz,
+        lambda_u=a.lambda_u,
     )
     if a.json:
         return say_json(d)

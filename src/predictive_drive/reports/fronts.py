@@ -13,7 +13,9 @@ curves, each a strategy with the setting it is traced over and the values. Knobs
   weight on commutations is what trades their distortion against switching (the deadbeat duty
   is part of the choice, not a carrier of its own);
 - field-oriented control over the control period ``ts``, which is its carrier period (f_sw =
-  1/Ts), its current loop tuned at every period by the technical optimum (kp = L/(2·1.5·Ts)).
+  1/Ts), its current loop tuned at every period by the technical optimum (kp = L/(2·1.5·Ts));
+- the long horizons (mptc at N = 2, 3, 5 over λ_sw; direct_mpc at N = 1, 3, 5, 10 over its
+  switching weight λ_u), one curve per N.
 
 The values reach from the papers' law (λ_sw = 0) to where the drive stops following the
 operating point, and for FOC from 0.5 to 20 kHz.
@@ -29,7 +31,9 @@ __all__ = [
     "FRONTS",
     "HOLD_SHARE",
     "KNOBS",
+    "DIRECT_HORIZONS",
     "MAX_GAP",
+    "MPTC_HORIZONS",
     "RANKED",
     "SHOWN",
     "Curve",
@@ -50,6 +54,7 @@ MAX_GAP = 2.0
 #: the settings a curve may be traced over, with the range each may take
 KNOBS: dict[str, tuple[float, float]] = {
     "torque_controller.lambda_sw": (0.0, 1e3),
+    "torque_controller.lambda_u": (1e-9, 1e3),
     "ts": (1e-5, 1e-2),
 }
 
@@ -93,6 +98,26 @@ def _fcs(
     return tuple(Curve(s, scenario, _LAMBDA, values[s]) for s in strategies)
 
 
+def _horizons(
+    strategy: str, scenario: str, knob: str, values: tuple[float, ...], horizons: tuple[int, ...]
+) -> tuple[Curve, ...]:
+    """One curve per horizon N of a long-horizon law (docs/physics.md#long-horizons), named
+    ``<strategy> N=<N>`` (plain ``mptc`` at N = 1: the papers' law)."""
+    return tuple(
+        Curve(
+            strategy, scenario, knob, values, {"torque_controller.horizon": n},
+            label=strategy if n == 1 and strategy == "mptc" else f"{strategy} N={n}",
+        )
+        for n in horizons
+    )  # fmt: skip
+
+
+_LAMBDA_U = (1e-4, 1e-3, 3e-3, 0.01, 0.03, 0.1, 0.3, 1.0)
+#: the horizons the fronts trace: mptc's and direct_mpc's
+MPTC_HORIZONS = (2, 3, 5)
+DIRECT_HORIZONS = (1, 3, 5, 10)
+
+
 _IM_LAMBDA = {
     "mptc": (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5),
     "mptc_db": (0.0, 0.05, 0.1, 0.2, 0.3, 0.4),
@@ -106,6 +131,7 @@ FRONTS: dict[str, OperatingPoint] = {
         "paper 000's induction motor (Li et al., EMCA 2022) held at 2772 r/min, T* = 3 N·m",
         (
             *_fcs("im_steady", ("mptc", "mptc_db", "db_mptc"), _IM_LAMBDA),
+            *_horizons("mptc", "im_steady", _LAMBDA, _IM_LAMBDA["mptc"], MPTC_HORIZONS),
             Curve("ifoc", "im_steady_foc", "ts", _FOC_TS, label="foc_im"),
         ),
         ("db_mptc", "mptc_db", "mptc"),
@@ -115,6 +141,14 @@ FRONTS: dict[str, OperatingPoint] = {
         "paper 001's interior PMSM (Li et al., CTA 2023, §6) held at 1000 r/min, T* = 15 N·m",
         (
             *_fcs("ipmsm_steady", _PMSM, dict.fromkeys(_PMSM, _PMSM_LAMBDA)),
+            *_horizons("mptc", "ipmsm_steady", _LAMBDA, _PMSM_LAMBDA, MPTC_HORIZONS),
+            *_horizons(
+                "direct_mpc",
+                "ipmsm_steady_mpc",
+                "torque_controller.lambda_u",
+                _LAMBDA_U,
+                DIRECT_HORIZONS,
+            ),  # fmt: skip
             Curve("foc_formula", "ipmsm_steady_foc", "ts", _FOC_TS, label="foc_mtpa"),
         ),
         ("mptc", "simplified2", "simplified1", "simplified3"),
@@ -125,6 +159,14 @@ FRONTS: dict[str, OperatingPoint] = {
         "T* = 4 N·m",
         (
             *_fcs("hs_ipmsm_steady", _PMSM, dict.fromkeys(_PMSM, _PMSM_LAMBDA + (0.06,))),
+            *_horizons("mptc", "hs_ipmsm_steady", _LAMBDA, _PMSM_LAMBDA + (0.06,), MPTC_HORIZONS),
+            *_horizons(
+                "direct_mpc",
+                "hs_ipmsm_steady_mpc",
+                "torque_controller.lambda_u",
+                _LAMBDA_U,
+                DIRECT_HORIZONS,
+            ),  # fmt: skip
             Curve("foc_formula", "hs_ipmsm_steady_foc", "ts", _FOC_TS, label="foc_mtpa"),
         ),
     ),
