@@ -101,7 +101,7 @@ def test_pmsm_threshold_defaults_to_a_share_of_rated_torque(tmp_path):
     [
         ("strategy: mptc ", "strategy: db_mptc ", ["db_mptc", "simplified3", "strategy"]),
         ("torque_threshold: 0.75", "torque_threshold: -1.0", ["torque_threshold", ">= 0"]),
-        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["PMSM.l_q", "> 0 H", "-0.0073"]),
+        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["/drive/plant.motor: l_q", "> 0 H", "-0.0073"]),
         ("machine: pmsm", "machine: dc", ["machine", "induction", "pmsm"]),
         ("      rated_torque: 15.0\n", "", ["rated_torque", "missing"]),
     ],
@@ -138,11 +138,11 @@ CASES = {
     "missing key": (lambda d: _plant(d).pop("u_dc"), r"/drive/plant: missing key 'u_dc'"),
     "negative inductance": (
         lambda d: _plant(d)["motor"].update(l_s=-0.28),
-        r"/drive/plant.motor: InductionMotor.l_s must be a finite number > 0 H, got -0.28",
+        r"/drive/plant.motor: l_s must be a finite number > 0 H, got -0.28",
     ),
     "unknown strategy": (
         lambda d: d["/drive/torque_controller"]["ros__parameters"].update(strategy="dtc"),
-        r"/drive/torque_controller: InductionControllerParams.strategy: 'dtc' is not one of "
+        r"/drive/torque_controller: strategy: 'dtc' is not one of "
         r"mptc, mptc_db, db_mptc",
     ),
     "wrong type": (

@@ -17,6 +17,7 @@ from predictive_drive.api.fronts import (
     with_knob_values,
 )
 from predictive_drive.api.reproduce import reproduce
+from predictive_drive.api.study import studying
 from predictive_drive.errors import ConfigError
 from predictive_drive.reports.fronts import COMMON_FSW, FRONTS, Curve, OperatingPoint
 
@@ -73,7 +74,8 @@ SMALL = {
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory) -> FrontsResult:
-    return reproduce_fronts(study=SMALL, figures=tmp_path_factory.mktemp("figures"), jobs=2)
+    with studying(None, jobs=2) as runner:
+        return reproduce_fronts(runner, study=SMALL, figures=tmp_path_factory.mktemp("figures"))
 
 
 def test_a_small_study_traces_each_curve_over_its_knob(small):
@@ -103,7 +105,7 @@ def test_a_small_study_traces_each_curve_over_its_knob(small):
 
 def test_the_knobs_values_are_checked_before_anything_runs(monkeypatch):
     ran = []
-    monkeypatch.setattr("predictive_drive.api.fronts.run_cases", lambda *a, **k: ran.append(a))
+    monkeypatch.setattr("predictive_drive.api.study.run_cases", lambda *a, **k: ran.append(a))
     for kw, words in [
         ({"lambda_sw": [0.1, -0.2]}, "--lambda-sw: -0.2 is outside 0..1000"),
         ({"lambda_sw": [math.inf]}, "--lambda-sw: inf is outside 0..1000"),

@@ -828,3 +828,39 @@ def test_direct_mpc_at_a_long_horizon_through_the_graph_equals_inprocess(tmp_pat
     assert np.isfinite(g.metrics.t_rmse) and np.isfinite(g.metrics.f_sw_hz)
     again = replay_into(g.bag, out=tmp_path / "again")
     assert (again.vector_agreement, again.pulse_agreement) == (1.0, 1.0)
+
+
+def test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step(composed_run, tmp_path):
+    """`predictive-drive param set torque_controller horizon 3` while the drive waits at its
+    scheduled step 500: from that step every command is mptc's at N = 3, the bag's spans say so
+    and hold the parameter event; a horizon of 9 is refused naming the range."""
+    from predictive_drive.api.report import evaluate, strategies_of
+    from predictive_drive.ros.processes import isolated_domain
+
+    common = {"duration": 0.05, "peer_timeout": 10.0, "switch_steps": [500]}
+    with isolated_domain() as domain:
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+        params = {
+            "plant": dict(common),
+            "torque_controller": {**common, "strategy": "mptc"},
+            "speed_pi": {"duration": 0.05},
+            "metrics_logger": {"duration": 0.05, "bag": str(tmp_path / "b"), "strategy": "mptc"},
+        }
+        p = composed_run(params, domain)
+        said = read_until(p, "waits for the strategy switch", stream="stdout")
+        assert "state 500 waits" in said, said
+        bad = subprocess.run([*CLI, "param", "set", "torque_controller", "horizon", "9"],
+                             env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
+        # rclpy's own range check (the descriptor's IntegerRange) answers first
+        assert bad.returncode != 0 and "horizon out of range. Min: 1, Max: 6" in bad.stderr
+        setter = subprocess.run([*CLI, "param", "set", "torque_controller", "horizon", "3"],
+                                env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert setter.returncode == 0, setter.stderr
+        out, _ = p.communicate(timeout=60)
+        assert p.returncode == 0, out
+    tr, info = read_bag(tmp_path / "b")
+    h = tr.col("command", "horizon")
+    assert tr.steps == 1000 and np.all(h[:500] == 1.0) and np.all(h[500:] == 3.0)
+    spans = [(s.strategy, s.first, s.last) for s in strategies_of(evaluate(tmp_path / "b"))]
+    assert spans == [("mptc", 0, 499), ("mptc N=3", 500, 999)]
+    assert ("horizon", 3) in [c for _, e in info.events for c in e.changed]

@@ -417,9 +417,12 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
         optional = _defaulted(doc, node, where) if len(path) == 1 else set()
         if leaf not in params and leaf not in optional:
             family = params.get(FAMILY_KEY) if node == "torque_controller" else None
+            meant = [k for k in _setting_keys(doc, where) if k.rsplit(".", 1)[-1] == leaf]
             raise ConfigError(
-                f"setting {key!r}: {section} has no key {leaf!r} here; keys: "
-                f"{', '.join(sorted(set(params) | optional))}{_family_hint(leaf, family)}"
+                f"setting {key!r}: {section} has no key {leaf!r} here"
+                + (f"; did you mean {' or '.join(meant)}?" if meant else "")
+                + f" (keys there: {', '.join(sorted(set(params) | optional))})"
+                + _family_hint(leaf, family)
             )
         if isinstance(value, str) and value.startswith("*"):
             try:
@@ -432,6 +435,24 @@ def apply_settings(text: str, settings: dict[str, Any], where: str | Path) -> st
             value = present * factor
         params[leaf] = value
     return str(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
+def _setting_keys(doc: dict[str, Any], where: str | Path) -> list[str]:
+    """Every key a setting can name in this scenario, dotted as settings name them (``ts``,
+    ``torque_controller.lambda_psi``, ``plant.motor.r_s``), the ones left to their default too."""
+
+    def walk(params: dict[str, Any], prefix: str) -> list[str]:
+        out = []
+        for k, v in params.items():
+            out += walk(v, f"{prefix}{k}.") if isinstance(v, dict) else [f"{prefix}{k}"]
+        return out
+
+    keys = walk(_params(doc, SHARED, where), "")
+    for node in NODES:
+        if f"{NAMESPACE}/{node}" in doc:
+            keys += walk(_params(doc, f"{NAMESPACE}/{node}", where), f"{node}.")
+            keys += [f"{node}.{k}" for k in sorted(_defaulted(doc, node, where))]
+    return list(dict.fromkeys(keys))
 
 
 def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:

@@ -9,13 +9,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..config import apply_settings, load_scenario, load_scenario_text, resolve_scenario_path
-from ..errors import ConfigError, PredictiveDriveError
+from ..errors import ConfigError
 from ..reports.fronts import (
     COMMON_FSW,
     FRONTS,
@@ -27,7 +27,8 @@ from ..reports.fronts import (
     Curve,
     OperatingPoint,
 )
-from .sweep import Case, run_cases
+from .study import Reproduction, StudyRuns
+from .sweep import Case
 
 __all__ = [
     "FrontCurve",
@@ -101,15 +102,9 @@ class FrontTable:
 
 
 @dataclass(frozen=True)
-class FrontsResult:
+class FrontsResult(Reproduction):
     """``reproduce fronts``: every operating point's curves and their comparison."""
 
-    scenario: str
-    engine: str
-    duration: float | None
-    settings: dict[str, Any]
-    paper: str
-    how: str
     frequencies: tuple[float, ...]
     points: list[FrontTable]
     runs: int
@@ -118,12 +113,7 @@ class FrontsResult:
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
-            "scenario": self.scenario,
-            "engine": self.engine,
-            "duration": self.duration,
-            "settings": self.settings,
-            "paper": self.paper,
-            "how": self.how,
+            **self.head(),
             "frequencies_hz": list(self.frequencies),
             "runs": self.runs,
             "wall_s": self.wall_s,
@@ -258,65 +248,41 @@ def _plans(
 
 
 def reproduce_fronts(
+    runner: StudyRuns,
     *,
-    duration: float | None = None,
-    jobs: int | None = None,
-    scheduler: str | None = None,
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
     study: Mapping[str, OperatingPoint] = FRONTS,
-    progress: Callable[[int, int], None] | None = None,
 ) -> FrontsResult:
     """Run every curve of every operating point of ``study`` (in-process, on the local cores or
-    the Dask cluster at ``scheduler``) and compare the fronts. ``settings`` apply to every run
-    (e.g. a real drive's delay with its compensation); ``duration`` shortens every run (the
-    windows are clipped: a quick look, not the study)."""
+    the Dask cluster of ``runner``) and compare the fronts. ``settings`` apply to every run
+    (e.g. a real drive's delay with its compensation); a shortened run (``runner.duration``)
+    clips the windows: a quick look, not the study."""
     settings = dict(settings or {})
     plans = _plans(study, settings)
-    total = sum(len(pairs) for _, _, groups in plans for pairs in groups.values())
     t0 = time.perf_counter()
-    done = 0
-    engine = ""
     tables = []
     for name, op, groups in plans:
         rows: dict[tuple[str, float], Any] = {}
         for scenario, pairs in groups.items():
-
-            def step(k: int, _n: int, base: int = done) -> None:
-                if progress is not None:
-                    progress(base + k, total)
-
-            swept = run_cases(
-                scenario,
-                [case for _, case in pairs],
-                duration=duration,
-                scheduler=scheduler,
-                jobs=jobs,
-                progress=step,
-            )
-            if swept.interrupted:
-                raise KeyboardInterrupt
-            engine = swept.engine
-            done += len(pairs)
-            for (curve, case), row in zip(pairs, swept.rows):
-                if row.error or row.metrics is None:
-                    raise PredictiveDriveError(
-                        f"reproduce fronts: the run {scenario} {case.strategy} "
-                        f"{case.settings} failed: {row.error}"
-                    )
+            cases = [
+                dataclasses.replace(case, bag=runner.bag(f"fronts_{name}_{curve.name}_{i}"))
+                for i, (curve, case) in enumerate(pairs)
+            ]
+            for (curve, case), row in zip(pairs, runner.runs(scenario, cases)):
                 rows[(curve.name, case.settings[curve.knob])] = row
         tables.append(_table(name, op, rows))
     out = FrontsResult(
         scenario=FRONTS_STUDY,
-        engine=engine,
-        duration=duration,
+        engine=runner.where,
+        duration=runner.duration,
         settings=settings,
         paper="each strategy's distortion against its switching frequency at a steady "
         "operating point, FOC + SVPWM the baseline",
         how=_HOW,
         frequencies=COMMON_FSW,
         points=tables,
-        runs=total,
+        runs=sum(len(pairs) for _, _, groups in plans for pairs in groups.values()),
         wall_s=time.perf_counter() - t0,
     )
     if figures is None:

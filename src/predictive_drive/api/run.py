@@ -202,6 +202,7 @@ def run(
     peer_timeout: float = 10.0,
     live: int = 0,
     external: Mapping[str, str | None] | None = None,
+    announce: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
     ``sched``: CPU placement (``paired`` | ``none``, see
@@ -212,7 +213,9 @@ def run(
     ``settings``: scenario keys changed for this run (see
     :func:`predictive_drive.config.apply_settings`); ``external``: nodes of the user's own in
     place of ours, by name (``torque_controller``, ``speed_pi``): the command that starts one,
-    or None to start it by hand (docs/ros.md#writing-your-own-controller)."""
+    or None to start it by hand (docs/ros.md#writing-your-own-controller); ``announce``: told
+    what the user should know before the run starts (where the live view serves), once every
+    check has passed."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     external = dict(external or {})
@@ -239,6 +242,11 @@ def run(
         check_new_bag(bag)
         if live:
             check_port(live)
+            if announce is not None:
+                announce(
+                    f"live view on ws://127.0.0.1:{live} (Foxglove / Lichtblick: open "
+                    "connection, Foxglove WebSocket)"
+                )
         t0 = time.perf_counter()
         # claimed before anything starts: a second run given the same --out is refused
         with claim_bag_dir(bag):

@@ -4,6 +4,7 @@ controller node step by step (``--into``)."""
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..api.replay import replay, replay_into
 from .common import refuse, say_json
@@ -44,7 +45,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                       help="publish /clock from the replayed time at HZ (default 40) instead of "
                       "the recorded /clock")  # fmt: skip
     play.add_argument("--start-paused", action="store_true",
-                      help="start paused (`predictive-drive param set player paused false`)")  # fmt: skip
+                      help="start paused (it says how to resume: `predictive-drive param set player "
+                      "paused false` on its ROS_DOMAIN_ID)")  # fmt: skip
     into = p.add_argument_group("replaying into a node (--into)")
     into.add_argument(
         "--into",
@@ -76,6 +78,15 @@ def main(a: argparse.Namespace) -> int:
         "clock_hz": a.clock,
         "start_paused": a.start_paused,
     }
+    if a.start_paused:
+        from ..ros.params import domain_id
+
+        print(
+            "predictive-drive: the replay starts paused; to start it, from another shell: "
+            f"ROS_DOMAIN_ID={domain_id()} predictive-drive param set player paused false",
+            file=sys.stderr,
+            flush=True,
+        )
     d = replay(a.bag, **{k: v for k, v in options.items() if v is not None})
     if a.json:
         say_json(d)

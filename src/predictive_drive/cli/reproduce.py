@@ -17,7 +17,7 @@ from ..api.run import ENGINES
 from ..core.metrics import METRICS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
 from ..reports.realism import RANKED, SHOWN
-from .common import refuse, say_json, single_settings
+from .common import refuse, runs_progress, say_json, seconds, single_settings
 
 HELP = (
     "a paper's table side by side with our figures (or an MTPA study, the realism study, or "
@@ -29,15 +29,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])
     )
-    p.add_argument("--engine", default="inprocess", choices=ENGINES)
+    p.add_argument(
+        "--engine",
+        default="inprocess",
+        choices=ENGINES,
+        help="where each run is made (default: inprocess, the runs in parallel across the "
+        "cores; ros, composed: one graph after another; the figures are the same on every "
+        "engine, the measured compute times aside)",
+    )
     p.add_argument(
         "--repeats", type=int, help="timing repeats for the compute ratios (median; default 5; "
         "ipmsm_validation only, the one table with compute ratios)",
     )  # fmt: skip
     p.add_argument(
-        "--duration", type=float, help="shorten every run to this many simulated seconds"
+        "--duration", type=seconds, help="shorten every run to this many simulated seconds"
     )
     p.add_argument("--figures", metavar="DIR", help="draw the table's runs, overlaid (PNG)")
+    p.add_argument(
+        "--bags",
+        metavar="DIR",
+        help="keep every run's bag in DIR (default: none kept; the bags the study needs for "
+        "its figures or its timing are recorded to a temporary folder and removed)",
+    )
     p.add_argument(
         "--set",
         action="append",
@@ -63,7 +76,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--fsw-khz", metavar="F1,F2,...", type=_numbers,
         help="fronts only: the carrier frequencies (kHz; ts = 1/f_sw) every FOC curve is "
-        "traced over (default 0.5,1,2,5,10,20)",
+        "traced over (default 0.5,1,2,3,5,7,10,15,20)",
     )  # fmt: skip
     p.add_argument(
         "--jobs", type=int, help="realism and fronts: local processes (default: every core)"
@@ -92,19 +105,25 @@ def main(a: argparse.Namespace) -> int:
             "lambda_sw", "lambda_u", "fsw_khz",
         )  # fmt: skip
     settings = single_settings(a.set)
-    d = reproduce(
-        a.scenario,
-        engine=a.engine,
-        repeats=5 if a.repeats is None else a.repeats,
-        duration=a.duration,
-        figures=a.figures,
-        settings=settings,
-        scheduler=a.scheduler,
-        jobs=a.jobs,
-        lambda_sw=a.lambda_sw,
-        fsw_khz=a.fsw_khz,
-        lambda_u=a.lambda_u,
-    )
+    update, close = runs_progress(f"reproduce {a.scenario}", quiet=a.json)
+    try:
+        d = reproduce(
+            a.scenario,
+            engine=a.engine,
+            out_root=a.bags,
+            repeats=5 if a.repeats is None else a.repeats,
+            duration=a.duration,
+            figures=a.figures,
+            settings=settings,
+            scheduler=a.scheduler,
+            jobs=a.jobs,
+            lambda_sw=a.lambda_sw,
+            fsw_khz=a.fsw_khz,
+            lambda_u=a.lambda_u,
+            progress=update,
+        )
+    finally:
+        close()
     if a.json:
         return say_json(d)
     if isinstance(d, MTPAStudyResult):
@@ -117,12 +136,22 @@ def main(a: argparse.Namespace) -> int:
         print_table(d)
     for f in d.figures:
         print(f"figure {f}")
+    if d.bags is not None:
+        print(f"bags   {d.bags.count} in {d.bags.folder} ({d.bags.bytes / 1e6:.1f} MB)")
     return 0
 
 
 def _settings(d: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult) -> None:
     if d.duration is not None:
-        print(f"NOTE: runs shortened to {d.duration:g} s; not comparable with the paper")
+        windows = "; ".join(
+            (f"{name} " if len(d.windows) > 1 else "")
+            + ", ".join(f"{lo:.4g}-{hi:.4g} s" for lo, hi in spans)
+            for name, spans in d.windows.items()
+        )
+        print(
+            f"NOTE: runs shortened to {d.duration:g} s, so the figures are over the window "
+            f"{windows}, not the paper's; not comparable with the paper"
+        )
     if d.settings:
         print("every run with " + ", ".join(f"{k} = {v}" for k, v in d.settings.items()))
 

@@ -9,7 +9,15 @@ from ..api.run import ENGINES, run
 from ..errors import ConfigError
 from ..live import DEFAULT_PORT
 from ..ros.placement import AFFINITIES, SCHED_POLICIES
-from .common import print_recording, progress, refuse, say_json, single_settings
+from .common import (
+    print_recording,
+    progress,
+    refuse,
+    say_json,
+    scenario_argument,
+    seconds,
+    single_settings,
+)
 
 HELP = "run a scenario, record it to bags/<run>/ and print its metrics"
 
@@ -38,10 +46,9 @@ def _external(texts: list[str]) -> dict[str, str | None]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="scenario name (im_paper, im_short, ...: the files of "
-                   "config/) or a path to a scenario .yaml")  # fmt: skip
+    scenario_argument(p)
     p.add_argument("--strategy", help="override the scenario's torque_controller.strategy")
-    p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--duration", type=seconds, help="simulated seconds (default: the scenario's)")
     p.add_argument(
         "--set", action="append", metavar="KEY=VALUE",
         help="a scenario setting, e.g. plant.actuation_delay_steps=1 or "
@@ -110,12 +117,6 @@ def main(a: argparse.Namespace) -> int:
     if a.engine == "inprocess":
         refuse(a, "applies to the ROS engines only (there are no peers in-process)",
                "peer_timeout")  # fmt: skip
-    if a.live:
-        print(
-            f"predictive-drive: live view on ws://127.0.0.1:{a.live} (Foxglove / Lichtblick: "
-            "open connection, Foxglove WebSocket)",
-            file=sys.stderr,
-        )
     update, close = progress(sys.stderr.isatty() and not a.json)
     try:
         r = run(
@@ -132,6 +133,7 @@ def main(a: argparse.Namespace) -> int:
             peer_timeout=10.0 if a.peer_timeout is None else a.peer_timeout,
             live=a.live or 0,
             external=_external(a.external or []),
+            announce=lambda line: print(f"predictive-drive: {line}", file=sys.stderr, flush=True),
         )
     finally:
         close()

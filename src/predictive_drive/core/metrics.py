@@ -123,7 +123,11 @@ class Metrics:
     )  # fmt: skip
     cal_ave: float = metric("Cal_ave", fmt=".2f", description="vector predictions per step")
     utilization: tuple[float, ...] = metric(
-        "vectors", "%", scale=100.0, fmt=".1f", description="share of steps choosing V0..V6"
+        "vectors",
+        "%",
+        scale=100.0,
+        fmt=".1f",
+        description="share of steps per vector, V0 zero",
     )
     deadbeat_share: float = metric(
         "deadbeat", "%", scale=100.0, fmt=".2f", description="steps with 0 < t_u < Ts"
@@ -134,7 +138,10 @@ class Metrics:
     compute_ns_median: float = metric(
         "compute", "µs/step", scale=1e-3, fmt=".2f", description="median, control law only"
     )
-    speed_rmse: float = metric("speed_RMSE", "rad/s", fmt=".3f", description="omega_m vs omega_m*")
+    speed_rmse: float = metric(
+        "speed_RMSE", "rad/s", fmt=".3f",
+        description="omega_m vs omega_m*, its steps (start, reversal) included",
+    )  # fmt: skip
     compute_ns_median_by_strategy: dict[str, float] = metric(
         "compute", "µs/step", scale=1e-3, fmt=".2f", description="median per strategy"
     )

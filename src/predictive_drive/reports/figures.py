@@ -21,7 +21,7 @@ from ..core.machines import Machine
 from ..core.metrics import METRICS, phase_a_spectrum
 from ..core.scenario import Scenario
 from ..core.trace import Trace
-from ..errors import ConfigError
+from ..dependencies import missing
 
 __all__ = [
     "Run",
@@ -49,10 +49,7 @@ def _pyplot() -> Any:
     try:
         import matplotlib
     except ImportError:
-        raise ConfigError(
-            "--figures needs matplotlib: pip install 'predictive_drive[figures]' (`make setup` "
-            "installs it)"
-        ) from None
+        raise missing("matplotlib", "--figures") from None
 
     matplotlib.use("Agg")  # files only: no display here, nor wanted
     import matplotlib.pyplot as plt
