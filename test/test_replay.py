@@ -430,3 +430,22 @@ def test_an_interrupted_replay_into_keeps_a_readable_bag_and_refuses_to_overwrit
     again = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert again.returncode == 2 and "a bag of that name exists" in again.stderr
     assert "Traceback" not in again.stderr
+
+
+def test_replay_into_across_a_recorded_horizon_switch_reproduces_every_command(tmp_path):
+    """mptc at N = 3 switched to N = 1 at step 200: replayed into the controller node, the
+    horizon switches where the recording's did (a parameter set before that step), and every
+    command is the recorded one."""
+    from predictive_drive.api.replay import replay_into
+    from predictive_drive.api.run import run
+    from predictive_drive.readback import read_bag
+
+    rec = tmp_path / "rec"
+    run("ipmsm_short", duration=0.02, settings={"torque_controller.horizon": 3},
+        switches=[(0.01, "horizon=1")], engine="inprocess", out=rec)  # fmt: skip
+    d = replay_into(rec, out=tmp_path / "again")
+    assert (d.vector_agreement, d.pulse_agreement) == (1.0, 1.0)
+    a, _ = read_bag(rec)
+    b, _ = read_bag(tmp_path / "again")
+    np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
+    assert set(b.col("command", "horizon")) == {1.0, 3.0}
