@@ -12,11 +12,12 @@ setup: $(STAMP)
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade "pip>=24"
-	$(PY) -m pip install --quiet -e ".[ros,figures,live,sweep,test]"
+	$(PY) -m pip install --quiet -e ".[ros,figures,live,sweep,fast,test]"
 	touch $(STAMP)
 
+# RUN_ARGS: more options for the run, e.g. make run RUN_ARGS="--duration 1" (a shorter run)
 run: setup
-	$(VENV)/bin/predictive-drive run im_paper --strategy db_mptc
+	$(VENV)/bin/predictive-drive run im_paper --strategy db_mptc $(RUN_ARGS)
 
 test: setup
 	$(VENV)/bin/ruff check src test examples

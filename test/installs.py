@@ -40,7 +40,7 @@ class Install:
         return self.prefix / "share" / "predictive_drive"
 
 
-def _clean_env() -> dict[str, str]:
+def clean_env() -> dict[str, str]:
     """The environment without this checkout on any path (the test's own venv and its
     editable install must not leak into the installed package's runs)."""
     # the ROS wheels' bootstrapper re-executes Python with the venv's library path and a guard
@@ -85,9 +85,9 @@ def wheel_install(tmp: Path, extras: str = "ros,figures") -> Install:
     python = venv / "bin" / "python"
     subprocess.run(
         [str(python), "-m", "pip", "install", "-q", f"{wheel}[{extras}]"],
-        check=True, capture_output=True, timeout=600, env=_clean_env(),
+        check=True, capture_output=True, timeout=600, env=clean_env(),
     )  # fmt: skip
-    env = _clean_env()
+    env = clean_env()
     env["PATH"] = os.pathsep.join([str(venv / "bin"), env["PATH"]])
     env["VIRTUAL_ENV"] = str(venv)
     return Install("wheel", venv, venv / "bin", python, env)
@@ -104,7 +104,7 @@ def colcon_install(tmp: Path) -> Install:
     )  # fmt: skip
     prefix = ws / "install" / "predictive_drive"
     site = next(prefix.glob("lib/python3*/site-packages"))
-    env = _clean_env()
+    env = clean_env()
     # what `. install/setup.sh` gives: the package's prefix in the ament index, its
     # site-packages on the path; the interpreter is the one it was built with (here: the test
     # venv, which holds rclpy from the wheels as a ROS install would)

@@ -5,7 +5,11 @@ from __future__ import annotations
 
 def mcap_file_order(path):
     """(channel topic, log time, sequence) of every message in the order the file holds them,
-    read as a stream (no index, no sorting); a file cut short, up to its last whole chunk."""
+    read as a stream (no index, no sorting); a file cut short, up to its last whole chunk (the
+    library's stream reader ends a cut inside a record's length with EndOfFile, inside one of
+    its fields with struct.error)."""
+    import struct
+
     from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Message
     from mcap.stream_reader import StreamReader
@@ -18,7 +22,7 @@ def mcap_file_order(path):
                     topics[r.id] = r.topic
                 elif isinstance(r, Message):
                     out.append((topics[r.channel_id], r.log_time, r.sequence))
-        except EndOfFile:
+        except (EndOfFile, struct.error):
             pass
     return out
 

@@ -1,6 +1,7 @@
 """Scenario files: ROS parameter-file form, validation errors that name file, key and allowed values."""
 
 import dataclasses
+import math
 from pathlib import Path
 
 import pytest
@@ -100,7 +101,7 @@ def test_pmsm_threshold_defaults_to_a_share_of_rated_torque(tmp_path):
     [
         ("strategy: mptc ", "strategy: db_mptc ", ["db_mptc", "simplified3", "strategy"]),
         ("torque_threshold: 0.75", "torque_threshold: -1.0", ["torque_threshold", ">= 0"]),
-        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["PMSM.l_q", "> 0 H", "-0.0073"]),
+        ("l_q: 0.0073 ", "l_q: -0.0073 ", ["/drive/plant.motor: l_q", "> 0 H", "-0.0073"]),
         ("machine: pmsm", "machine: dc", ["machine", "induction", "pmsm"]),
         ("      rated_torque: 15.0\n", "", ["rated_torque", "missing"]),
     ],
@@ -137,11 +138,11 @@ CASES = {
     "missing key": (lambda d: _plant(d).pop("u_dc"), r"/drive/plant: missing key 'u_dc'"),
     "negative inductance": (
         lambda d: _plant(d)["motor"].update(l_s=-0.28),
-        r"/drive/plant.motor: InductionMotor.l_s must be a finite number > 0 H, got -0.28",
+        r"/drive/plant.motor: l_s must be a finite number > 0 H, got -0.28",
     ),
     "unknown strategy": (
         lambda d: d["/drive/torque_controller"]["ros__parameters"].update(strategy="dtc"),
-        r"/drive/torque_controller: InductionControllerParams.strategy: 'dtc' is not one of "
+        r"/drive/torque_controller: strategy: 'dtc' is not one of "
         r"mptc, mptc_db, db_mptc",
     ),
     "wrong type": (
@@ -149,6 +150,11 @@ CASES = {
         r"/drive/plant.u_dc: expected a number, got 'high'",
     ),
     "missing section": (lambda d: d.pop("/drive/speed_pi"), r"missing section '/drive/speed_pi'"),
+    "mixed list": (  # rcl's parser refuses it: the nodes could not start
+        lambda d: _plant(d).update(load_times=[0, 0.15, 0.3]),
+        r"/drive/plant.load_times: \[0, 0.15, 0.3\] mixes float and int; a ROS 2 parameter "
+        r"file's list holds one type",
+    ),
     "unknown family": (
         lambda d: d["/drive/torque_controller"]["ros__parameters"].update(family="dtc_im"),
         r"/drive/torque_controller.family: 'dtc_im' is not one of mptc_im, mptc_pmsm",
@@ -180,9 +186,10 @@ def test_bad_scenario_errors_name_file_and_key(tmp_path, case):
 
 def test_unknown_scenario_name_lists_available():
     with pytest.raises(
-        ConfigError, match="available: hs_ipmsm_mtpa, hs_ipmsm_mtpa_short, im_paper"
-    ):
+        ConfigError, match="available: hs_ipmsm_mtpa, hs_ipmsm_mtpa_short, hs_ipmsm_steady, "
+    ) as e:
         load_scenario("nope")
+    assert ", im_paper, im_short, " in str(e.value)
 
 
 def test_dataclasses_are_frozen():
@@ -207,3 +214,56 @@ def test_mtpa_scenarios_have_the_papers_values():
     assert ip.plant.motor == load_scenario("ipmsm_validation").plant.motor  # paper 001's IPMSM
     assert ip.plant.load_values == (5.0, 10.0, 15.0)
     assert all(b - a >= 1.0 for a, b in zip(ip.plant.load_times, (*ip.plant.load_times[1:], 4.5)))
+
+
+@pytest.mark.parametrize("value", [-0.1, math.nan, math.inf], ids=["negative", "nan", "inf"])
+@pytest.mark.parametrize("scenario", ["im_short", "ipmsm_short"])
+def test_a_switching_effort_must_be_a_finite_number_not_below_zero(scenario, value):
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path(scenario)
+    text = apply_settings(path.read_text(), {"torque_controller.lambda_sw": value}, path)
+    with pytest.raises(ConfigError, match=r"lambda_sw must be a finite number >= 0") as e:
+        load_scenario_text(text, path)
+    assert str(path) in str(e.value)
+
+
+def test_a_switching_effort_is_refused_where_no_finite_control_set_chooses():
+    """Field-oriented control modulates: it has no candidates to weigh, so no lambda_sw."""
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path("ipmsm_mtpa_short")
+    hint = r"lambda_sw is a setting of the controller families mptc_im, mptc_pmsm; this "
+    with pytest.raises(ConfigError, match=hint + "scenario's torque controller is foc_pmsm"):
+        apply_settings(path.read_text(), {"torque_controller.lambda_sw": 0.1}, path)
+    text = path.read_text().replace(
+        "    strategy: foc_injection", "    lambda_sw: 0.1\n    strategy: foc_injection"
+    )
+    assert "lambda_sw" in text
+    with pytest.raises(ConfigError, match=r"unknown key 'lambda_sw'; allowed keys: .*" + hint):
+        load_scenario_text(text, path)
+
+
+STEADY = ("im_steady", "ipmsm_steady", "hs_ipmsm_steady")
+
+
+@pytest.mark.parametrize("name", STEADY)
+def test_a_steady_point_is_the_same_drive_for_mptc_and_field_orientation(name):
+    """<name> and <name>_foc: the same machine, inverter, held speed, torque and flux
+    references and windows; they differ in the control period and the torque controller alone
+    (the fronts compare the two at the same operating point)."""
+    fcs, foc = load_scenario(name), load_scenario(f"{name}_foc")
+    assert fcs.plant == foc.plant and fcs.speed_pi == foc.speed_pi and fcs.logger == foc.logger
+    assert fcs.run.machine == foc.run.machine and fcs.run.duration == foc.run.duration
+    assert fcs.family.startswith("mptc_") and foc.family.startswith("foc_")
+    assert fcs.plant.held and fcs.speed_pi.torque_control and fcs.plant.period_means
+    assert fcs.logger.thd_window == (fcs.logger.window_start, fcs.logger.window_end)
+
+
+def test_a_held_shaft_refuses_a_load_profile(tmp_path):
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+
+    path = resolve_scenario_path("ipmsm_steady")
+    text = apply_settings(path.read_text(), {"plant.load_values": [5.0]}, path)
+    with pytest.raises(ConfigError, match=r"plant.load_values: \[5.0\] with a held speed"):
+        load_scenario_text(text, path)

@@ -8,15 +8,22 @@ import numpy as np
 import pytest
 
 from predictive_drive.core.control import InductionController, make_strategy, strategy_names
+from predictive_drive.core.control.base import SwitchingEffort
 from predictive_drive.core.control.mptc_im import IMPrediction
 from predictive_drive.core.control.speed_pi import SpeedPI, SpeedPIParams
-from predictive_drive.core.inverter import vector_voltages
+from predictive_drive.core.inverter import (
+    VECTOR_STATES,
+    active_then_zero,
+    segments,
+    vector_voltages,
+)
 from predictive_drive.core.machines.induction import (
     InductionCoefficients,
     induction_dynamics,
     induction_rk4,
     induction_torque,
 )
+from predictive_drive.core.plant import PERIOD_MEANS
 from predictive_drive.core.signals import Reference, State
 
 pytestmark = pytest.mark.core
@@ -197,9 +204,9 @@ def test_unknown_strategy_lists_the_valid_ones():
 
 
 def _state(k, i=0j, w=0.0):
-    return State(
-        float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0, i.real, i.imag, w, 0.0
-    )
+    sampled = (float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0)
+    truth = (i.real, i.imag, w, 0.0)
+    return State(*sampled, *truth, *(0.0,) * len(PERIOD_MEANS))  # the controller reads no mean
 
 
 def test_soft_start_is_latched_off_once_flux_reaches_threshold(im_short):
@@ -307,3 +314,116 @@ def test_the_printed_a0_is_used_only_when_the_scenario_asks_for_it(im_short):
     np.testing.assert_array_equal(commands("mptc", "derived"), commands("mptc", "paper_printed"))
     with pytest.raises(ConfigError, match=r"a0_form.*derived, paper_printed"):
         commands("mptc", "printed")
+
+
+def commutations(vector, fraction, prev):
+    """Leg commutations of ``vector`` for ``fraction`` of Ts then the zero vector, counted from
+    switching state ``prev`` by the plant's own segment count (two device transitions per leg
+    change), never by the controller's tables."""
+    pulses, _ = active_then_zero(vector, fraction, prev)
+    return segments(pulses, prev)[2] // 2
+
+
+PREVIOUS = [VECTOR_STATES[n] for n in range(8)]
+
+
+@pytest.mark.parametrize("lam_sw", [0.05, 0.4, 3.0])
+@pytest.mark.parametrize("name", ["mptc", "mptc_db", "db_mptc"])
+def test_switching_effort_equals_exhaustive_search(coef, name, lam_sw):
+    """Each IM strategy with λ_sw against a brute force of the documented cost
+    (docs/physics.md#switching-effort): paper 000's cost of each candidate (mptc and mptc_db:
+    the full-period prediction; db_mptc: the scaled vector) plus λ_sw × the commutations the
+    candidate causes as it would be applied from the state in force — mptc_db's and db_mptc's
+    duty returning to the zero vector within the period — counted by the plant. Near-ties of
+    the brute force's finite differences (1e-6) and duties within 1e-5 of 0 or 1 accept either."""
+    volts = vector_voltages(582.0)
+    s = make_strategy("mptc_im", name)
+    rng = random.Random(7)
+    checked = 0
+    for i, psi, w, t_ref in random_states(300, seed=4):
+        prev = rng.choice(PREVIOUS)
+        m = IMPrediction(coef, TS, LAM, False, SwitchingEffort(lam_sw))
+        m.prepare(i, psi, w, volts)
+        m.switching(prev)
+        d = s.decide(m, t_ref, 0.71)
+        dpsi0 = induction_dynamics(0.0, (i, psi, w, 0.0), (0j, 0.0), coef)[1]
+        costs, edge = {}, False
+        for n in range(7):
+            t_u = TS if n == 0 else deadbeat_time(coef, i, psi, w, volts[n], t_ref)
+            if name == "db_mptc" and t_u < 0:
+                continue
+            frac = 1.0 if name == "mptc" else min(max(t_u / TS, 0.0), 1.0)
+            raw = t_u / TS
+            edge |= n > 0 and name != "mptc" and min(abs(raw), abs(1.0 - raw)) < 1e-5
+            if name == "db_mptc":
+                dpsi = induction_dynamics(0.0, (i, psi, w, 0.0), (volts[n], 0.0), coef)[1]
+                t1 = _torque_after(coef, i, psi, w, volts[n], frac * TS)
+                p1 = psi + TS * dpsi0 + frac * TS * (dpsi - dpsi0)
+            else:
+                di, dpsi, _, _ = induction_dynamics(0.0, (i, psi, w, 0.0), (volts[n], 0.0), coef)
+                i1, p1 = i + TS * di, psi + TS * dpsi
+                t1 = induction_torque(p1, i1, coef.torque_k)
+            g = abs(t_ref - t1) + LAM * abs(0.71 - abs(p1))
+            costs[n] = g + lam_sw * commutations(n, frac, prev)
+        ranked = sorted(costs, key=lambda n: (costs[n], n))
+        if edge or (len(ranked) > 1 and costs[ranked[1]] - costs[ranked[0]] < 1e-6):
+            assert d.vector in ranked[:2] or edge
+            continue
+        assert d.vector == ranked[0], (prev, costs)
+        checked += 1
+    assert checked > 200
+
+
+@pytest.mark.parametrize("name", ["mptc", "mptc_db", "db_mptc"])
+def test_no_switching_effort_is_the_law_without_it(coef, name):
+    """λ_sw = 0 through the effort's own code path decides exactly as the law without it."""
+    volts = vector_voltages(582.0)
+    s = make_strategy("mptc_im", name)
+    for i, psi, w, t_ref in random_states(200, seed=5):
+        plain = IMPrediction(coef, TS, LAM, False)
+        zero = IMPrediction(coef, TS, LAM, False, SwitchingEffort(0.0))
+        for m in (plain, zero):
+            m.prepare(i, psi, w, volts)
+        zero.switching((1, 0, 1))
+        a, b = s.decide(plain, t_ref, 0.71), s.decide(zero, t_ref, 0.71)
+        assert a[:2] == b[:2] and a.cal == b.cal
+
+
+@pytest.mark.parametrize("name", ["mptc", "mptc_db", "db_mptc"])
+def test_switching_effort_lowers_the_switching_frequency(im_short, name):
+    """Closed loop on paper 000's induction motor: f_sw falls as λ_sw rises (N·m per commutation,
+    against a torque error of tenths of N·m)."""
+    import dataclasses
+
+    from predictive_drive.core.metrics import compute_metrics
+    from predictive_drive.core.runner import run_inprocess
+
+    f_sw = []
+    for lam_sw in (0.0, 0.1, 0.5):
+        ctrl = dataclasses.replace(im_short.controller, strategy=name, lambda_sw=lam_sw)
+        sc = dataclasses.replace(im_short, controller=ctrl)
+        f_sw.append(compute_metrics(run_inprocess(sc, steps=3000), t_start=0.02).f_sw_hz)
+    assert f_sw[0] > f_sw[1] > f_sw[2], f_sw
+
+
+@pytest.mark.parametrize("loop", ["one_step", "immediate"])
+def test_a_torque_profile_replaces_the_speed_pi(loop):
+    """With speed_pi.torque_times the reference is the torque profile's at the step it is for,
+    whatever the speed, and the PI integrates nothing."""
+    pi = SpeedPI(
+        pi_params(torque_times=(0.0, 0.001), torque_values=(2.0, -2.0), speed_loop=loop), ts=TS
+    )
+    lag = 0 if loop == "immediate" else 1
+    if loop == "one_step":
+        assert pi.initial().torque_ref == 2.0
+    for k in range(60):
+        r = pi.step(_state(k, w=123.0))
+        assert r.k == k + lag and r.torque_ref == (2.0 if k + lag < 20 else -2.0)
+    assert pi.integral == 0.0
+
+
+def test_a_torque_profile_beyond_the_limit_is_refused():
+    from predictive_drive.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"speed_pi.torque_values: \[9.0\] N·m reach beyond"):
+        pi_params(torque_times=(0.0,), torque_values=(9.0,))

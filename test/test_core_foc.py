@@ -268,10 +268,18 @@ def test_a_live_switch_between_mtpa_laws_is_bumpless():
 
 
 def test_the_dither_period_must_be_a_whole_number_of_samples():
+    """For foc_injection, at the start or in a live switch to it; the other laws run at any
+    period (the fronts' carrier sweep), the switch to the injection refused with the reason."""
     sc = load_scenario("ipmsm_mtpa_short")
     bad = dataclasses.replace(sc.controller, injection_hz=300.0)
     with pytest.raises(ConfigError, match=r"injection_hz: 300 Hz gives 33.33 samples"):
         make_controller("foc_pmsm", bad, ts=sc.ts)
+    ctrl = make_controller("foc_pmsm", dataclasses.replace(bad, strategy="foc_formula"), ts=sc.ts)
+    assert "33.33 samples per dither period" in ctrl.refusal("foc_injection")
+    assert ctrl.refusal("foc_zero_d") is None
+    with pytest.raises(ValueError, match=r"injection_hz: 300 Hz gives 33.33 samples"):
+        ctrl.set_strategy("foc_injection")
+    assert ctrl.strategy.name == "foc_formula"
 
 
 def test_a_rotating_reference_leaves_the_amplitude_still():
@@ -292,3 +300,60 @@ def test_a_rotating_reference_leaves_the_amplitude_still():
     mag_h = 2 * np.mean(np.abs(i) * ph)
     assert abs(theta_h) > 0.02  # the angle follows the dither (attenuated by the loop)
     assert abs(mag_h) / amp < 0.002 * abs(theta_h)
+
+
+def test_the_technical_optimum_is_the_pole_cancelling_pi_at_kp_l_over_3ts():
+    """kp = L/(2 T_σ), T_σ = 1.5 Ts; the zero on the pole a = e^{-R Ts/L}; the nominal closed
+    loop's step per period K = kp·(1 - a)/R, near 1/3 for Ts ≪ L/R."""
+    from predictive_drive.core.control.foc import technical_optimum
+
+    r, ind = 4.69, 0.01636  # paper 000's induction motor: R_σ, σL_s
+    for ts in (5e-5, 1e-4, 1e-3):
+        pi = technical_optimum(r=r, ind=ind, ts=ts)
+        a = math.exp(-r * ts / ind)
+        assert pi.kp == pytest.approx(ind / (3 * ts)) and pi.pole == pytest.approx(a)
+        assert pi.ki == pytest.approx(pi.kp * (1 - a)) and pi.gain == pytest.approx(
+            pi.kp * (1 - a) / r
+        )
+        assert abs(pi.gain - 1 / 3) < 0.05
+
+
+@pytest.fixture(scope="module")
+def im_foc_run():
+    sc = load_scenario("im_steady_foc")
+    return sc, run_inprocess(sc)
+
+
+def test_field_orientation_holds_the_induction_motors_torque_and_flux(im_foc_run):
+    """foc_im at paper 000's point (2772 r/min held, T* = 3 N·m): over the window the true torque
+    averages T* and |ψ_s| what the references make of the machine — ψ_r* = (L_m/L_s)ψ*,
+    i_d = ψ_r*/L_m, i_q = T*·L_r/(1.5 p L_m ψ_r*), |ψ_s| = |L_s i_d + jσL_s i_q| — and the
+    controller's own estimate (the current model's flux) agrees with the truth; the switching
+    frequency is the carrier's."""
+    sc, tr = im_foc_run
+    m = sc.plant.motor
+    k0 = round(sc.logger.window_start / sc.ts)
+    torque = tr.col("state", "torque")[k0:]
+    assert torque.mean() == pytest.approx(3.0, rel=5e-3)
+    psi_r = m.l_m / m.l_s * 0.71
+    i_d, i_q = psi_r / m.l_m, 3.0 * m.l_r / (1.5 * m.p * m.l_m * psi_r)
+    want = abs(complex(m.l_s * i_d, m.sigma * m.l_s * i_q))
+    psi = np.hypot(tr.col("state", "psi_alpha"), tr.col("state", "psi_beta"))[k0:]
+    assert psi.mean() == pytest.approx(want, rel=5e-3)
+    est = tr.col("command", "flux_est")[k0:]
+    np.testing.assert_allclose(est, psi[:-1], rtol=0.01)
+    np.testing.assert_allclose(tr.col("command", "torque_est")[k0:], torque[:-1], atol=0.2)
+    true_angle = np.angle(tr.col("state", "psi_alpha") + 1j * tr.col("state", "psi_beta"))[k0:-1]
+    gap = np.angle(np.exp(1j * (tr.col("command", "flux_angle")[k0:] - true_angle)))
+    assert np.max(np.abs(gap)) < 0.02  # rad: the frame sits on the machine's flux
+    from predictive_drive.api.report import metrics_of
+
+    assert metrics_of(tr, sc).f_sw_hz == pytest.approx(1 / sc.ts, rel=1e-9)
+
+
+def test_field_orientation_of_the_induction_motor_is_refused_a_bad_setting():
+    sc = load_scenario("im_steady_foc")
+    with pytest.raises(ConfigError, match=r"min_flux_share must be a finite number 0..1"):
+        dataclasses.replace(sc.controller, min_flux_share=0.0)
+    with pytest.raises(ConfigError, match=r"current_tuning: 'fast' is not one of bandwidth"):
+        dataclasses.replace(sc.controller, current_tuning="fast")

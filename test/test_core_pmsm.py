@@ -11,9 +11,15 @@ import pytest
 
 from predictive_drive.config import load_scenario
 from predictive_drive.core.control import PMSMController, make_strategy
+from predictive_drive.core.control.base import SwitchingEffort
 from predictive_drive.core.control.candidates import TABLES, sector
 from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
-from predictive_drive.core.inverter import vector_voltages
+from predictive_drive.core.inverter import (
+    VECTOR_STATES,
+    active_then_zero,
+    segments,
+    vector_voltages,
+)
 from predictive_drive.core.machines.pmsm import (
     PMSM,
     PMSMCoefficients,
@@ -24,7 +30,7 @@ from predictive_drive.core.machines.pmsm import (
 from predictive_drive.core.metrics import compute_metrics, phase_a_spectrum
 from predictive_drive.core.plant import PMSMPlant, rk4
 from predictive_drive.core.runner import run_inprocess
-from predictive_drive.core.signals import Reference, State
+from predictive_drive.core.signals import Command, Reference, State
 from predictive_drive.core.timebase import StepProfile
 from predictive_drive.core.trace import Trace
 
@@ -185,11 +191,21 @@ def candidates_of(name, v, threshold, t_ref, psi_ref):
     return TABLES.twelve[0 if d_t > 0 else 1][f][sector(v.theta_psi, 12)]
 
 
+@pytest.mark.parametrize("lam_sw", [0.0, 0.02, 0.2, 1.0])
 @pytest.mark.parametrize("name", ["mptc", "simplified1", "simplified2", "simplified3"])
 @pytest.mark.parametrize("motor", [SPMSM, IPMSM], ids=["SPMSM", "IPMSM"])
-def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
+def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor, lam_sw):
+    """Each strategy against a brute force over its own candidates: eq 5's normalised cost and,
+    with a switching effort λ_sw (docs/physics.md#switching-effort), λ_sw × the leg commutations
+    of the vector for the whole period from the state in force, counted by the plant's segment
+    count. λ_sw = 0 runs the law without an effort at all."""
     s = make_strategy("mptc_pmsm", name)
+    rng = random.Random(11)
     for m, v, t_ref, psi_ref in random_views(motor, 300):
+        prev = VECTOR_STATES[rng.randrange(8)]
+        if lam_sw:
+            m.effort = SwitchingEffort(lam_sw)
+            m.switching(prev)
         d = s.decide(m, t_ref, psi_ref)
         cands = candidates_of(name, v, m.threshold, t_ref, psi_ref)
         if cands is None:
@@ -199,9 +215,11 @@ def test_strategy_equals_exhaustive_search_on_its_candidates(name, motor):
         costs = []
         for n in cands:
             t1, p1 = vector_form(v, n)
-            costs.append(math.sqrt(((t1 - t_ref) / norm_t) ** 2 + ((p1 - psi_ref) / psi_ref) ** 2))
+            g = math.sqrt(((t1 - t_ref) / norm_t) ** 2 + ((p1 - psi_ref) / psi_ref) ** 2)
+            pulses, _ = active_then_zero(n, 1.0, prev)
+            costs.append(g + lam_sw * (segments(pulses, prev)[2] // 2))
         best = cands[int(np.argmin(costs))]  # first minimum, ascending vector order
-        assert d.vector == best, (name, cands, costs)
+        assert d.vector == best, (name, prev, cands, costs)
         assert d.cal == len(cands) and d.fraction == 1.0
 
 
@@ -339,3 +357,99 @@ def test_an_induction_motors_spectrum_counts_the_cycles_of_its_flux_not_its_roto
     assert sp.thd == pytest.approx(0.1, rel=1e-3)
     rotor = phase_a_spectrum(tr, 0.0, 0.2)
     assert rotor.cycles == 9 and rotor.thd > 0.3
+
+
+@pytest.mark.parametrize("substeps", [1, 32], ids=["substep Ts", "substep Ts/32"])
+def test_period_means_match_the_closed_form_of_a_locked_rotor(substeps):
+    """θ = 0, rotor locked (inertia huge), V1 along d: i_d(t) = I(1 - e^{-at}), I = U/R, a = R/L_d,
+    no torque. Each state's period means of i, i², |ψ| = L_d i + ψ_f and its square against the
+    integrals of the closed form; the quadrature takes each signal as linear between sub-steps,
+    so it is exact to O((h·a)²)."""
+    motor = dataclasses.replace(IPMSM, j=1e12)
+    load = StepProfile((0.0,), (0.0,))
+    plant = PMSMPlant(
+        motor, ts=TS, u_dc=U_DC, load=load, max_substep=TS / substeps, period_means=True
+    )
+    u = 2.0 / 3.0 * U_DC
+    big, a = u / motor.r_s, motor.r_s / motor.l_d
+
+    def integrals(t):  # ∫0^t i dt, ∫0^t i² dt
+        e1, e2 = math.exp(-a * t), math.exp(-2 * a * t)
+        return big * (t - (1 - e1) / a), big**2 * (t - 2 * (1 - e1) / a + (1 - e2) / (2 * a))
+
+    rtol = 1e-3 if substeps == 1 else 1e-6
+    for k in range(40):
+        s = plant.step(Command(k, k * TS, 0, 0, 0, 1, 0, 0, *[math.nan] * 14))
+        (m0, q0), (m1, q1) = integrals(k * TS), integrals((k + 1) * TS)
+        mean, square = (m1 - m0) / TS, (q1 - q0) / TS
+        assert s.i_alpha_avg == pytest.approx(mean, rel=rtol)
+        assert s.current_sq_avg == pytest.approx(square, rel=rtol)
+        assert s.torque_avg == pytest.approx(0.0, abs=1e-9) and s.torque_sq_avg < 1e-15
+        assert s.flux_avg == pytest.approx(motor.l_d * mean + motor.psi_f, rel=rtol)
+        flux_square = motor.l_d**2 * square + 2 * motor.l_d * motor.psi_f * mean + motor.psi_f**2
+        assert s.flux_sq_avg == pytest.approx(flux_square, rel=rtol)
+    assert s.i_alpha_avg > 20.0  # the current has risen well off zero
+
+
+def test_continuous_current_thd_counts_what_samples_miss():
+    """A current of known parts — 10 A fundamental at 50 Hz, 1 A of 5th harmonic (negative
+    sequence) and 0.5 A rotating at 27 kHz, above the 10 kHz the steps can show — given as
+    the plant gives it: period means of i_αβ and of |i|², integrated in closed form. The
+    continuous THD counts all of it, sqrt(1² + 0.5²)/10; the sampled THD of phase a counts
+    what the aliased samples show."""
+    ts, f1, n = 5e-5, 50.0, 8000
+    parts = [(10.0, 2 * math.pi * f1), (1.0, -5 * 2 * math.pi * f1), (0.5, 2 * math.pi * 27e3)]
+    k = np.arange(n + 1)
+    t0 = (k - 1) * ts  # state k holds the means over period k-1
+
+    def period_mean(nu):  # mean of e^{jνt} over [t0, t0 + Ts)
+        return np.exp(1j * nu * (t0 + ts / 2)) * np.sinc(nu * ts / (2 * math.pi))
+
+    mean_i = sum(a * period_mean(nu) for a, nu in parts)
+    mean_sq = sum(a * a for a, _ in parts) + sum(
+        2 * (a * b * period_mean(nu - mu)).real
+        for i, (a, nu) in enumerate(parts)
+        for b, mu in parts[i + 1 :]
+    )
+    theta = 2 * math.pi * f1 * k * ts
+    sampled = sum(a * np.exp(1j * nu * k * ts) for a, nu in parts)
+    state = np.zeros((n + 1, len(State._fields)))
+    columns = {
+        "k": k, "t": k * ts, "theta_e": np.mod(theta, 2 * math.pi), "i_alpha": sampled.real,
+        "i_alpha_avg": mean_i.real, "i_beta_avg": mean_i.imag, "current_sq_avg": mean_sq,
+    }  # fmt: skip
+    for name, values in columns.items():
+        state[:, State._fields.index(name)] = values
+    state[:, State._fields.index("theta_e_true")] = state[:, State._fields.index("theta_e")]
+    state[:, State._fields.index("i_alpha_true")] = sampled.real
+    tr = Trace(ts, state, np.zeros((n + 1, 5)), np.zeros((n, len(Command._fields))))
+    m = compute_metrics(tr, thd_window=(0.0, 0.2))
+    assert m.thd_cycles == 10
+    assert m.i_thd_cont == pytest.approx(math.hypot(1.0, 0.5) / 10.0, rel=1e-3)
+
+
+def test_switching_effort_lowers_the_switching_frequency(ipmsm_short):
+    """Closed loop, conventional MPTC on paper 001's IPMSM: f_sw falls as λ_sw rises."""
+    f_sw = []
+    for lam_sw in (0.0, 0.05, 0.2):
+        ctrl = dataclasses.replace(ipmsm_short.controller, lambda_sw=lam_sw)
+        sc = dataclasses.replace(ipmsm_short, controller=ctrl)
+        f_sw.append(compute_metrics(run_inprocess(sc, steps=3000)).f_sw_hz)
+    assert f_sw[0] > f_sw[1] > f_sw[2], f_sw
+
+
+def test_a_held_shaft_turns_at_its_profile_whatever_the_torque():
+    """A load machine holds the speed (plant.held_speed_*): whatever torque the motor makes, ω_m
+    is the profile's at every step — stepping exactly at its step — and θ turns with it."""
+    rpm = 2 * math.pi / 60
+    held = StepProfile((0.0, 0.01), (500 * rpm, 1000 * rpm))
+    plant = PMSMPlant(IPMSM, ts=TS, u_dc=U_DC, load=StepProfile((0.0,), (0.0,)), max_substep=TS,
+                      held_speed=held)  # fmt: skip
+    states = [plant.state()]
+    for k in range(400):
+        states.append(plant.step(Command(k, k * TS, 0, 0, 0, 1, 1, 0, *[math.nan] * 14)))
+    w = np.array([s.omega_m for s in states])
+    assert np.all(w[:200] == 500 * rpm) and np.all(w[200:] == 1000 * rpm)
+    assert abs(states[-1].torque) > 1.0  # the motor makes torque; the shaft does not give
+    theta = np.array([s.theta_m for s in states])
+    np.testing.assert_allclose(np.diff(theta), w[:-1] * TS, rtol=1e-12)

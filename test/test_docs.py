@@ -69,6 +69,29 @@ def test_every_link_and_anchor_resolves(page):
     assert not bad, bad
 
 
+#: a path in a page's text: relative (``../x``, ``./x``) or absolute on a machine
+PATH_IN_TEXT = re.compile(
+    r"(?<![\w.~/-])((?:\.\.?/)+[\w./-]+|/(?:work|home|root|tmp|Users)/[\w./-]*)"
+)
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_no_page_points_outside_the_repository(page):
+    """What a page names is in the repository: no relative path that climbs out of it or names
+    nothing in it (a tool beside the developers' checkout: ../shared/...), no absolute path of
+    someone's machine (a ROS install's /opt/ros/... is the user's own and allowed)."""
+    bad = []
+    for path in PATH_IN_TEXT.findall(page.read_text()):
+        if path.startswith("/"):
+            bad.append(path)
+            continue
+        # read from the page's folder or from the checkout's root, as a reader might
+        places = [(base / path).resolve() for base in (page.parent, ROOT)]
+        if not any(p.is_relative_to(ROOT) and p.exists() for p in places):
+            bad.append(path)
+    assert not bad, f"{page.name} points outside the repository: {bad}"
+
+
 def test_code_and_tests_cite_docs_that_exist():
     """Every docs/ file and #anchor cited in src/ and test/ resolves; nothing cites the steering
     documents outside the repository."""

@@ -146,7 +146,7 @@ def test_your_section_takes_any_key_and_ours_are_checked():
                           path, own=["torque_controller"])  # fmt: skip
     sc = load_scenario_text(mine, path, own=["torque_controller"])
     assert sc.external and sc.controller is None and sc.family == "mptc_im"
-    with pytest.raises(ConfigError, match="has no key 'gain' here; keys: "):
+    with pytest.raises(ConfigError, match="has no key 'gain' here"):
         apply_settings(text, {"torque_controller.gain": 3}, path)
     with pytest.raises(ConfigError, match="unknown key 'gain'"):
         load_scenario_text(mine, path)
@@ -296,8 +296,9 @@ NEVER = [
      r"before its last command \(step 399\); the run was stopped"),
     (f"{BAD} exit0 100", [], r"error: your torque_controller \(pid \d+\) exited with status 0 at "
      r"step 100, before its last command \(step 399\); the run was stopped"),
-    (f"{BAD} silent 0", ["--startup-timeout", "3"], r"error: /drive/plant: no /drive/command for "
-     r"step 0 from /drive/torque_controller within 3.0 s; the run was stopped \(plant, pid \d+"),
+    # (long enough for the node to start and subscribe on a loaded machine: it then never answers)
+    (f"{BAD} silent 0", ["--startup-timeout", "15"], r"error: /drive/plant: no /drive/command for "
+     r"step 0 from /drive/torque_controller within 15.0 s; the run was stopped \(plant, pid \d+"),
     (None, ["--startup-timeout", "3"], r"error: /drive/plant: step 0 still waits for "
      r"/drive/torque_controller \(no /drive/state subscription, no /drive/command publisher\) "
      r"within 3.0 s; the run was stopped"),
@@ -448,7 +449,7 @@ def test_replaying_the_example_into_itself_gives_its_commands_bit_for_bit(dtc_ru
     new, info = read_bag(d.bag)
     assert info.info["engine"] == "replay" and info.info["strategy"] == EXTERNAL
     assert np.array_equal(new.command, old.command, equal_nan=True)  # diagnostics too
-    assert np.array_equal(new.state, old.state)
+    assert np.array_equal(new.state, old.state, equal_nan=True)  # the period means: NaN, off
 
 
 @pytest.mark.process
@@ -491,7 +492,7 @@ def test_the_speed_loop_started_as_an_external_command_gives_the_same_run(tmp_pa
     tb, _ = read_bag(b.bag)
     assert a.strategy == b.strategy == "db_mptc"
     for rec in ("state", "reference"):
-        assert np.array_equal(getattr(ta, rec), getattr(tb, rec)), rec
+        assert np.array_equal(getattr(ta, rec), getattr(tb, rec), equal_nan=True), rec
     # the decisions alike (the command's last field, compute_ns, is measured; NaN where a
     # diagnostic does not apply)
     assert np.array_equal(ta.command[:, :-1], tb.command[:, :-1], equal_nan=True)

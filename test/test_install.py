@@ -140,9 +140,11 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     r = call(install, work, "layout", "--out", "drive.foxglove.json")
     assert r.returncode == 0, r.stderr
     assert json.loads((work / "drive.foxglove.json").read_text())["configById"]
+    assert ok_json(install, work, "layout", "--out", "drive.foxglove.json", "--force")["replaced"]
 
     rep = ok_json(install, work, "reproduce", "im_paper", "--duration", "0.06")
     assert [r_["strategy"] for r_ in rep["rows"]] == ["mptc", "mptc_db", "db_mptc"]
+    assert rep["bags"] is None and not list(work.glob("bags/reproduce_*"))  # none kept
 
     sw = ok_json(install, work, "sweep", "im_short", "--strategy", "mptc,db_mptc",
                  "--duration", "0.05")  # fmt: skip
@@ -153,3 +155,25 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
 
     # nothing was written into the source tree
     assert not (ROOT / "bags" / "inprocess").exists()
+
+
+MISSING = (
+    "import sys; sys.modules['mcap'] = None; from predictive_drive.cli import main; "
+    "sys.exit(main(sys.argv[1:]))"
+)
+
+
+def test_a_missing_package_is_one_line_naming_it(install, tmp_path):
+    """An install without one of its packages (a workspace built without rosdep): `--help` and
+    a verb say which package and how to install it, in one line, without a traceback."""
+    said = (
+        "predictive-drive: error: the Python package mcap is not installed: pip install 'mcap'; "
+        "in a ROS workspace, rosdep install --from-paths src --ignore-src -y (its key: "
+        "mcap-ros2-support)"
+    )
+    for args in (["--help"], ["run", "--help"], ["report", "some_bag"]):
+        r = subprocess.run(
+            [str(install.python), "-c", MISSING, *args],
+            cwd=tmp_path, env=install.env, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert r.returncode == 2 and r.stderr.splitlines() == [said], (args, r.stderr)

@@ -12,7 +12,7 @@ import pytest
 
 from predictive_drive.config import load_scenario
 from predictive_drive.core.metrics import compute_metrics
-from predictive_drive.core.plant import ALL_LOW, make_plant
+from predictive_drive.core.plant import ALL_LOW, PERIOD_MEANS, make_plant
 from predictive_drive.core.runner import build_plant, run_inprocess
 from predictive_drive.core.signals import Command, PhasePulses
 from predictive_drive.errors import ConfigError
@@ -49,7 +49,7 @@ def test_uncompensated_delay_degrades_and_compensation_restores(strategy):
 
 
 def _command(k: int, pulses) -> Command:
-    return Command(float(k), 0.0, *pulses, *([math.nan] * 13))
+    return Command(float(k), 0.0, *pulses, *([math.nan] * 14))
 
 
 def test_a_delayed_command_acts_that_many_periods_later():
@@ -69,6 +69,15 @@ def test_a_delayed_command_acts_that_many_periods_later():
             assert a == b, (d, k)
 
 
+def _same_state(a, b):
+    """The same sample; the same period means to the quadrature's accuracy: the dead-time plant
+    cuts the period into more pieces, each signal taken as linear between other points (0.012 %
+    apart here: the torque's curvature over a 27 us piece)."""
+    n = len(a) - len(PERIOD_MEANS)
+    np.testing.assert_allclose(a[:n], b[:n], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(a[n:], b[n:], rtol=1e-3)
+
+
 def test_dead_time_delays_the_edge_that_goes_against_the_current():
     """Phase a commanded high on [0.2, 0.7) Ts with its current flowing out of the leg: during
     the dead time after the rising edge both devices are off and the lower diode holds the leg
@@ -77,6 +86,7 @@ def test_dead_time_delays_the_edge_that_goes_against_the_current():
     sc = load_scenario("ipmsm_short")
     ts, td = sc.ts, 0.04 * sc.ts
     kw = dict(ts=ts, u_dc=sc.plant.u_dc, load=sc.plant.load_profile(), max_substep=ts)
+    kw["period_means"] = True
     dead = make_plant("pmsm", sc.plant.motor, dead_time=td, **kw)
     ideal = make_plant("pmsm", sc.plant.motor, **kw)
     for p in (dead, ideal):
@@ -85,7 +95,7 @@ def test_dead_time_delays_the_edge_that_goes_against_the_current():
     assert i_a > 1.0
     a = dead.step(_command(0, (0.2, 0.0, 0.0, 0.5, 0.0, 0.0)))
     b = ideal.step(_command(0, (0.2 + td / ts, 0.0, 0.0, 0.5 - td / ts, 0.0, 0.0)))
-    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    _same_state(a, b)
     # the opposite current: the rising edge is on time, the falling edge late
     dead = make_plant("pmsm", sc.plant.motor, dead_time=td, **kw)
     ideal = make_plant("pmsm", sc.plant.motor, **kw)
@@ -94,7 +104,7 @@ def test_dead_time_delays_the_edge_that_goes_against_the_current():
     assert dead._i_ab(dead.x).real < -1.0
     a = dead.step(_command(0, (0.2, 0.0, 0.0, 0.5, 0.0, 0.0)))
     b = ideal.step(_command(0, (0.2, 0.0, 0.0, 0.5 + td / ts, 0.0, 0.0)))
-    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    _same_state(a, b)
 
 
 def test_dead_time_raises_foc_thd_and_the_feed_forward_lowers_it():

@@ -9,7 +9,7 @@ import math
 import pytest
 
 from predictive_drive import cli
-from predictive_drive.api import reproduce as reproduce_module
+from predictive_drive.api import study as study_module
 from predictive_drive.api.reproduce import RealismResult, _ranks, reproduce
 from predictive_drive.api.sweep import Case, run_case
 from predictive_drive.config import apply_settings, resolve_scenario_path
@@ -137,7 +137,7 @@ def test_a_real_drive_setting_replaces_the_studys_in_its_columns(monkeypatch):
         seen.append((scenario, cases))
         raise KeyboardInterrupt  # enough: the cases are what this test looks at
 
-    monkeypatch.setattr(reproduce_module, "run_cases", record)
+    monkeypatch.setattr(study_module, "run_cases", record)  # every study runs its cases there
     with pytest.raises(KeyboardInterrupt):
         reproduce("realism", settings={"plant.dead_time": 1e-6, "speed_pi.kp": "*0.5"})
     scenario, cases = seen[0]

@@ -429,9 +429,11 @@ def test_a_live_rate_change_and_the_clock_from_the_replayed_time(tmp_path):
     assert code == 0, err
     assert len(listener.got["/drive/command"]) == 8000  # every one, whatever the pace
     # the second half (0.2 s of recorded time) came far faster than rate 0.05 would bring it
-    # (4 s): the rate was changed while it played; at 20 the player could not keep up
+    # (4 s): the rate was changed while it played; at 20 the player could not keep up. How much
+    # faster depends on the machine's load (0.49 s for these 4,000 messages with two test
+    # suites on the 2 cores, 10x failed there): twice is the rate change, whatever the load
     late = [t for t, _ in listener.got["/drive/command"][4000:]]
-    assert 0.2 / (late[-1] - late[0]) > 10 * 0.05, late[-1] - late[0]  # at least 10x faster
+    assert 0.2 / (late[-1] - late[0]) > 2 * 0.05, late[-1] - late[0]  # at least 2x faster
     assert report["max_lag_s"] > 0.1
     assert "replay falls behind" in err and "drops nothing" in err
     clock = [_stamp(d) for _, d in listener.got["/clock"]]
@@ -466,3 +468,22 @@ def test_an_interrupted_replay_into_keeps_a_readable_bag_and_refuses_to_overwrit
     again = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert again.returncode == 2 and "a bag of that name exists" in again.stderr
     assert "Traceback" not in again.stderr
+
+
+def test_replay_into_across_a_recorded_horizon_switch_reproduces_every_command(tmp_path):
+    """mptc at N = 3 switched to N = 1 at step 200: replayed into the controller node, the
+    horizon switches where the recording's did (a parameter set before that step), and every
+    command is the recorded one."""
+    from predictive_drive.api.replay import replay_into
+    from predictive_drive.api.run import run
+    from predictive_drive.readback import read_bag
+
+    rec = tmp_path / "rec"
+    run("ipmsm_short", duration=0.02, settings={"torque_controller.horizon": 3},
+        switches=[(0.01, "horizon=1")], engine="inprocess", out=rec)  # fmt: skip
+    d = replay_into(rec, out=tmp_path / "again")
+    assert (d.vector_agreement, d.pulse_agreement) == (1.0, 1.0)
+    a, _ = read_bag(rec)
+    b, _ = read_bag(tmp_path / "again")
+    np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
+    assert set(b.col("command", "horizon")) == {1.0, 3.0}

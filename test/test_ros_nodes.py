@@ -85,7 +85,8 @@ def test_every_parameter_is_described_with_unit_and_range_and_read_only(node_in,
             if name == "use_sim_time":  # rclpy's own
                 continue
             assert d.description, (cls.__name__, name)
-            assert d.read_only == (name != "strategy" or cls is not TorqueControllerNode), name
+            # the switchable ones (strategy, horizon) are the controller's only writable ones
+            assert d.read_only == (name not in cls.writable), (cls.__name__, name)
     plant = _descriptors(node_in(PlantNode, scenario))
     r_s = plant["motor.r_s"]
     assert "stator resistance" in r_s.description and "Ω" in r_s.description
@@ -97,7 +98,7 @@ def test_every_parameter_is_described_with_unit_and_range_and_read_only(node_in,
     assert "unit s" in plant["peer_timeout"].description
     ctrl = _descriptors(node_in(TorqueControllerNode, scenario))
     assert "one of mptc_im, mptc_pmsm" in ctrl["family"].description
-    assert not ctrl["strategy"].read_only
+    assert not ctrl["strategy"].read_only and "horizon" in TorqueControllerNode.writable
 
 
 def test_a_parameter_outside_its_range_is_refused_when_declared(tmp_path):

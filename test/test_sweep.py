@@ -84,7 +84,7 @@ def test_a_sweep_row_is_the_run_with_its_settings(tmp_path):
     assert len(bad) == 4 and all(
         row.settings["torque_controller.motor.l_m"] == "*-1" for row in bad
     )
-    assert "InductionMotor.l_m must be a finite number > 0" in bad[0].error
+    assert "/drive/torque_controller.motor: l_m must be a finite number > 0" in bad[0].error
     assert "with torque_controller.lambda_psi=" in bad[0].error  # names the case
     path = resolve_scenario_path("im_short")
     for row in r.rows:

@@ -221,6 +221,13 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if origin is tuple:
         if not isinstance(value, list):
             raise ConfigError(f"{where}: expected a list of numbers, got {value!r}")
+        kinds = {type(v) for v in value}
+        if len(kinds) > 1:  # rcl's parameter-file parser refuses a mixed sequence
+            raise ConfigError(
+                f"{where}: {value!r} mixes "
+                f"{' and '.join(sorted(k.__name__ for k in kinds))}; a ROS 2 parameter file's "
+                f"list holds one type (write 0.0, not 0, beside 0.5)"
+            )
         return tuple(
             _coerce(v, typing.get_args(hint)[0], f"{where}[{i}]") for i, v in enumerate(value)
         )
@@ -251,6 +258,24 @@ def build_section(cls: type, data: Any, nested: dict[str, type], where: str) -> 
         return cls(**kwargs)
     except ConfigError as e:
         raise ConfigError(f"{where}: {e}") from None
+
+
+def _family_hint(key: str, family: Any) -> str:
+    """A sentence naming the controller families that have ``key``, when the scenario's family
+    (``family``) does not: a setting of another family is a different mistake from a typo."""
+    if family is None:
+        return ""
+    owners = [
+        name
+        for name, cls in CONTROLLERS.items()
+        if name != family and key in section_fields(cls.params_type)
+    ]
+    if not owners:
+        return ""
+    return (
+        f" ({key} is a setting of the controller famil{'ies' if len(owners) > 1 else 'y'} "
+        f"{', '.join(owners)}; this scenario's torque controller is {family})"
+    )
 
 
 def family_of(params: dict[str, Any], where: str, default: str | None = None) -> str:
@@ -342,6 +367,12 @@ def load_scenario_text(
             f"{path}: {ctrl_key}.{FAMILY_KEY}: {family!r} controls a {controls} machine, but the "
             f"scenario's machine is {run.machine!r}"
         )
+    known = section_fields(controller_class(family).params_type)
+    for key in ctrl_params if "torque_controller" not in own else ():  # the user's: any key
+        if key not in known and (hint := _family_hint(key, family)):
+            raise ConfigError(
+                f"{path}: {ctrl_key}: unknown key {key!r}; allowed keys: {', '.join(known)}{hint}"
+            )
     built: dict[str, Any] = {}
     for node, (cls, nested) in section_classes(run.machine, family).items():
         key = f"{NAMESPACE}/{node}"
@@ -452,9 +483,13 @@ def apply_settings(
         leaf = path[-1]
         optional = _defaulted(doc, node, where) if len(path) == 1 else set()
         if leaf not in params and leaf not in optional and not theirs:
+            family = params.get(FAMILY_KEY) if node == "torque_controller" else None
+            meant = [k for k in _setting_keys(doc, where) if k.rsplit(".", 1)[-1] == leaf]
             raise ConfigError(
-                f"setting {key!r}: {section} has no key {leaf!r} here; keys: "
-                f"{', '.join(sorted(set(params) | optional))}"
+                f"setting {key!r}: {section} has no key {leaf!r} here"
+                + (f"; did you mean {' or '.join(meant)}?" if meant else "")
+                + f" (keys there: {', '.join(sorted(set(params) | optional))})"
+                + _family_hint(leaf, family)
             )
         if isinstance(value, str) and value.startswith("*"):
             try:
@@ -467,6 +502,24 @@ def apply_settings(
             value = present * factor
         params[leaf] = value
     return str(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
+def _setting_keys(doc: dict[str, Any], where: str | Path) -> list[str]:
+    """Every key a setting can name in this scenario, dotted as settings name them (``ts``,
+    ``torque_controller.lambda_psi``, ``plant.motor.r_s``), the ones left to their default too."""
+
+    def walk(params: dict[str, Any], prefix: str) -> list[str]:
+        out = []
+        for k, v in params.items():
+            out += walk(v, f"{prefix}{k}.") if isinstance(v, dict) else [f"{prefix}{k}"]
+        return out
+
+    keys = walk(_params(doc, SHARED, where), "")
+    for node in NODES:
+        if f"{NAMESPACE}/{node}" in doc:
+            keys += walk(_params(doc, f"{NAMESPACE}/{node}", where), f"{node}.")
+            keys += [f"{node}.{k}" for k in sorted(_defaulted(doc, node, where))]
+    return list(dict.fromkeys(keys))
 
 
 def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:

@@ -7,6 +7,7 @@ __all__ = [
     "ConfigError",
     "GraphError",
     "Interrupted",
+    "MissingDependency",
     "PredictiveDriveError",
 ]
 
@@ -17,6 +18,11 @@ class PredictiveDriveError(Exception):
 
 class ConfigError(PredictiveDriveError, ValueError):
     """A scenario file or parameter is wrong; the message names the file, key and allowed values."""
+
+
+class MissingDependency(ConfigError):
+    """A package the command needs is not installed; the message names it and how to install
+    it (:mod:`predictive_drive.dependencies`)."""
 
 
 class BagError(PredictiveDriveError):

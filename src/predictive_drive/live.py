@@ -16,6 +16,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from .dependencies import missing
 from .errors import ConfigError
 from .interface import BAG_TOPICS, RECORD_TOPICS, node_name
 from .schemas import message_definition
@@ -34,10 +35,7 @@ def _foxglove() -> Any:
     try:
         import foxglove
     except ImportError:
-        raise ConfigError(
-            "--live needs the foxglove-sdk package: pip install 'predictive_drive[live]' "
-            "(or pip install foxglove-sdk)"
-        ) from None
+        raise missing("foxglove", "--live") from None
     return foxglove
 
 

@@ -43,7 +43,15 @@ from .core.commands import COMMAND_CONTRACT
 from .core.control import strategy_names
 from .core.metrics import LiveMetrics
 from .core.scenario import Scenario
-from .core.signals import COMMAND_INDEX, EXTERNAL, STATE_INDEX, strategy_name
+from .core.signals import (
+    COMMAND_INDEX,
+    EXTERNAL,
+    STATE_INDEX,
+    span_key,
+    span_name,
+    span_parts,
+    strategy_name,
+)
 from .core.timebase import every_steps
 from .errors import BagError
 from .interface import (
@@ -67,6 +75,7 @@ __all__ = [
     "own_nodes",
     "scenario_of",
     "spans_from_json",
+    "command_span_keys",
     "strategy_spans",
     "tool_every",
     "tool_messages",
@@ -201,19 +210,31 @@ def spans_from_json(text: str) -> list[StrategySpan]:
 
 
 def strategy_spans(
-    strategy: Iterable[float], names: tuple[str, ...], k0: int = 0, external: str = EXTERNAL
+    keys: Iterable[float], names: tuple[str, ...], k0: int = 0, external: str = EXTERNAL
 ) -> list[StrategySpan]:
-    """The spans of a run's per-step strategy index (the command's ``strategy`` field; NaN: a
-    controller of one's own, named ``external``)."""
+    """The spans of a run's per-step span keys (:func:`command_span_keys`: the command's
+    ``strategy`` and ``horizon``; NaN: a controller of one's own, named ``external``)."""
     spans, k = [], k0
-    for name, steps in itertools.groupby(strategy, key=lambda i: strategy_name(names, i, external)):
+    for name, steps in itertools.groupby(keys, key=lambda i: span_name(names, i, external)):
         n = sum(1 for _ in steps)
         spans.append(StrategySpan(name, k, k + n - 1))
         k += n
     return spans
 
 
-#: the strategy index before the first span: no command's (theirs are >= 0, or NaN)
+def command_span_keys(commands: np.ndarray) -> np.ndarray:
+    """The span key (:func:`~.core.signals.span_key`) of each row of commands."""
+    return np.asarray(
+        span_key(commands[:, COMMAND_INDEX.strategy], commands[:, COMMAND_INDEX.horizon])
+    )
+
+
+def _row_key(row: Any) -> float:
+    """The span key of one command row."""
+    return float(span_key(float(row[COMMAND_INDEX.strategy]), float(row[COMMAND_INDEX.horizon])))
+
+
+#: the span key before the first span: no command's (theirs are >= 0, or NaN)
 _NO_SPAN = -1.0
 
 
@@ -225,6 +246,15 @@ def _decode_or_nan(codec: Any, data: bytes) -> tuple[float, ...]:
         return values
     except BagError:
         return (math.nan,) * len(codec.fields)
+
+
+def _changed(names: tuple[str, ...], before: float, key: float) -> list[tuple[str, Any]]:
+    """The parameter change that took a run from span key ``before`` to ``key``: the
+    strategy's name, or the horizon alone when the strategy stayed."""
+    (s0, h0), (s1, h1) = span_parts(before), span_parts(key)
+    if s0 == s1 and h0 != h1:
+        return [("horizon", int(h1))]
+    return [("strategy", strategy_name(names, s1))]
 
 
 def _same_strategy(a: float, b: float) -> bool:
@@ -352,7 +382,7 @@ class RunRecorder:
         commanded = min(steps, len(c))
         views = [memoryview(rows) for rows in (states, references, commands)]
         sizes = [8 * width for width in self._widths]
-        strategy = c[:, COMMAND_INDEX.strategy]
+        strategy = command_span_keys(c)
         i = 0
         while i < commanded:
             if self._group is None or not _same_strategy(float(strategy[i]), self._index):
@@ -434,7 +464,7 @@ class RunRecorder:
         if t > self.last_t:
             self.last_t = t
         k = int(cmd[K])
-        index = cmd[COMMAND_INDEX.strategy]
+        index = _row_key(cmd)
         if _same_strategy(index, self._index) and k == self._through + 1:
             self._through = k
         else:
@@ -540,7 +570,7 @@ class RunRecorder:
                 if t > self.last_t:
                     self.last_t = t
                 if record == "command":
-                    self._span(int(row[K]), row[COMMAND_INDEX.strategy])
+                    self._span(int(row[K]), _row_key(row))
                 snap = live(record, row)
                 if snap is not None:
                     self._diagnose(snap)
@@ -675,7 +705,7 @@ class RunRecorder:
     def _spans_of(self, commands: np.ndarray) -> None:
         """The strategy spans of consecutive commands (:meth:`_span` of each, at once when
         they go on the span in force)."""
-        index = commands[:, COMMAND_INDEX.strategy]
+        index = command_span_keys(commands)
         same = np.isnan(index) if math.isnan(self._index) else index == self._index
         k = commands[:, K]
         if same.all() and k[0] == self._through + 1 and np.all(np.diff(k) == 1):
@@ -766,18 +796,21 @@ class RunRecorder:
         )
 
     def _span(self, k: int, index: float) -> None:
-        """Command k ran strategy ``index``: the span goes on, or a new one starts (in-process
-        with the parameter event the controller node would publish)."""
+        """Command k ran the strategy (and horizon) of span key ``index``: the span goes on, or
+        a new one starts (in-process with the parameter event the controller node would
+        publish: the strategy's, or the horizon's when only the horizon changed)."""
         if _same_strategy(index, self._index) and k == self._through + 1:
             self._through = k
             return
         self._seal()
+        before = self._index
         self._index, self._through = index, k
-        name = strategy_name(self.strategy_names, index, self.external)
+        name = span_name(self.strategy_names, index, self.external)
         self._spans.append(StrategySpan(name, k, k))
         if k > 0 and self._events:
             t = k * self.ts
-            data = encode_parameter_event(t, node_name("torque_controller"), [("strategy", name)])
+            changed = _changed(self.strategy_names, before, index)
+            data = encode_parameter_event(t, node_name("torque_controller"), changed)
             self._hold("parameter_events", stamp_ns(t), data)
 
     def _seal(self) -> None:

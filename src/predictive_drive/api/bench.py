@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import shlex
 import shutil
@@ -25,13 +26,16 @@ from .run import run, run_inprocess_to_bag
 
 __all__ = [
     "GRAPH_RUNS",
+    "HORIZON_RUNS",
     "QUICK_RUNS",
     "Bench",
     "GraphRate",
     "GraphRun",
+    "HorizonRate",
     "bench",
     "graph_rate",
     "graph_runs",
+    "horizon_rate",
 ]
 
 
@@ -143,6 +147,58 @@ class GraphRate:
     core_near_steps_per_s: float = math.nan
 
 
+#: the long-horizon laws a bench times: (strategy, scenario, horizons)
+HORIZON_RUNS = (
+    ("mptc", "im_paper", (1, 2, 3, 5)),
+    ("direct_mpc", "ipmsm_steady_mpc", (1, 3, 5, 10)),
+)
+
+
+@dataclass(frozen=True)
+class HorizonRate:
+    """One law at one horizon: steps/s of the whole in-process loop (plant, speed loop,
+    controller; no recording) over ``steps`` from the start, that as a share of the call's core
+    loop (``of_core``), the controller's compute time per step (median, 99th percentile) and
+    the nodes its search visited per step (mean)."""
+
+    strategy: str
+    scenario: str
+    horizon: int
+    steps: int
+    steps_per_s: float
+    of_core: float
+    compute_us_median: float
+    compute_us_p99: float
+    nodes_mean: float
+    decoder: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def horizon_rate(
+    strategy: str, scenario: str, horizon: int, steps: int, core: float
+) -> HorizonRate:
+    """Time ``strategy`` at ``horizon`` on ``scenario`` for ``steps`` (see :class:`HorizonRate`)."""
+    sc = load_scenario(scenario, strategy=strategy)
+    sc = dataclasses.replace(sc, controller=dataclasses.replace(sc.controller, horizon=horizon))
+    decoder = getattr(sc.controller, "decoder", "")
+    if decoder == "auto":
+        from ..core.control.kernels import kernel_unavailable
+
+        decoder = "python" if kernel_unavailable() else "compiled"
+    run_inprocess(sc, steps=min(steps, 50))  # a compiled kernel loads before the clock starts
+    t0 = time.perf_counter()
+    tr = run_inprocess(sc, steps=steps)
+    rate = steps / (time.perf_counter() - t0)
+    ns = tr.col("command", "compute_ns")
+    return HorizonRate(
+        strategy, scenario, horizon, steps, rate, rate / core,
+        float(np.median(ns)) / 1e3, float(np.percentile(ns, 99)) / 1e3,
+        float(tr.col("command", "cal").mean()), decoder or "-",
+    )  # fmt: skip
+
+
 def _core_rate(sc: Any, steps: int) -> float:
     """Steps/s of the core loop in one run of ``steps``."""
     t0 = time.perf_counter()
@@ -173,6 +229,7 @@ class Bench:
     compute_us_per_step: dict[str, float]  #: median control-law time per strategy
     real_time_steps_per_s: float
     graph: list[GraphRate]
+    horizons: list[HorizonRate]
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -185,6 +242,7 @@ class Bench:
             "report_steps_per_s": self.report_steps_per_s,
             "inprocess_recorded_of_core": self.inprocess_recorded_of_core,
             "report_x_core": self.report_x_core,
+            "horizons": [h.as_dict() for h in self.horizons],
         }
         for g in self.graph:
             out[g.run.key] = g.steps_per_s
@@ -211,13 +269,16 @@ def bench(
     ros: bool = True,
     quick: bool = False,
     graph: Sequence[str] = (),
+    horizons: bool = True,
+    horizon_steps: int = 4000,
 ) -> Bench:
     """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests).
-    ``quick``: one repeat of 2,000 steps and 0.3 s graph runs of the default engines; ``graph``:
-    only these graph runs (see :func:`graph_runs`)."""
+    ``quick``: one repeat of 2,000 steps, horizons over 200 and 0.3 s graph runs of the
+    default engines; ``graph``: only these graph runs (see :func:`graph_runs`). ``horizons``:
+    time the long-horizon laws (:data:`HORIZON_RUNS`) over ``horizon_steps`` each."""
     chosen = graph_runs(graph) if graph else QUICK_RUNS if quick else GRAPH_RUNS
     if quick:
-        repeats, steps = 1, 2000
+        repeats, steps, horizon_steps = 1, 2000, 200
     if repeats < 1:
         raise ConfigError(f"--repeats {repeats}: must be at least 1")
     if steps < 2000:
@@ -267,6 +328,11 @@ def bench(
             )
             near = (before + _core_rate(sc, steps)) / 2
             measured.append(GraphRate(g, r["steps_per_s"], r["startup_s"], near))
+    rows = []
+    if horizons:
+        core = _median(rates)
+        for strategy, scenario, ns in HORIZON_RUNS:
+            rows += [horizon_rate(strategy, scenario, n, horizon_steps, core) for n in ns]
     return Bench(
         steps=steps,
         core_steps_per_s=_median(rates),
@@ -278,4 +344,5 @@ def bench(
         compute_us_per_step=compute,
         real_time_steps_per_s=1.0 / sc.ts,
         graph=measured,
+        horizons=rows,
     )

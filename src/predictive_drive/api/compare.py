@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..core.metrics import Metrics
+from ..core.metrics import Metrics, unequal_switching
 from ..errors import ConfigError
 from .report import evaluate
 
@@ -27,10 +27,16 @@ class Compared:
 
 @dataclass(frozen=True)
 class Comparison:
-    """``compare``: the recordings in the order given, and the figures drawn."""
+    """``compare``: the recordings in the order given, the figures drawn, and ``unequal_fsw``:
+    a sentence when their switching frequencies differ too much for their distortion to
+    compare (None when they do not)."""
 
     runs: list[Compared]
     figures: list[Path] = field(default_factory=list)
+
+    @property
+    def unequal_fsw(self) -> str | None:
+        return unequal_switching({r.label: r.metrics.f_sw_hz for r in self.runs})
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -38,7 +44,8 @@ class Comparison:
                 {"bag": str(r.bag), "label": r.label, "steps": r.steps,
                  "metrics": r.metrics.as_dict()}
                 for r in self.runs
-            ]
+            ],
+            "unequal_fsw": self.unequal_fsw,
         }  # fmt: skip
         if self.figures:
             out["figures"] = [str(p) for p in self.figures]

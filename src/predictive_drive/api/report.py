@@ -15,7 +15,14 @@ from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
 from ..readback import BagInfo, read_bag
-from ..recording import OwnNode, StrategySpan, scenario_of, spans_from_json, strategy_spans
+from ..recording import (
+    OwnNode,
+    StrategySpan,
+    command_span_keys,
+    scenario_of,
+    spans_from_json,
+    strategy_spans,
+)
 
 __all__ = [
     "Evaluation",
@@ -271,7 +278,7 @@ def strategies_of(ev: Evaluation) -> list[StrategySpan]:
     if "strategies" in ev.info.custom:
         return spans_from_json(ev.info.custom["strategies"])
     tr = ev.trace
-    return strategy_spans(tr.col("command", "strategy"), tr.strategy_names, external=tr.external)
+    return strategy_spans(command_span_keys(tr.command), tr.strategy_names, external=tr.external)
 
 
 def steps_of(ev: Evaluation) -> list[LoadStep]:

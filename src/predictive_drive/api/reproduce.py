@@ -7,28 +7,25 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import re
-import tempfile
-import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..bag import check_new_bag
 from ..config import (
     apply_settings,
     load_scenario,
     load_scenario_text,
     resolve_scenario_path,
-    scenario_with,
 )
 from ..core.analysis import load_steps
 from ..core.control.mtpa import mtpa_point
+from ..core.metrics import unequal_switching
 from ..core.scenario import Scenario
 from ..core.trace import Trace
-from ..errors import ConfigError, PredictiveDriveError
+from ..errors import ConfigError
+from ..reports.fronts import FRONTS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, Column, MTPAStudy
 from ..reports.realism import (
     CONDITIONS,
@@ -41,11 +38,12 @@ from ..reports.realism import (
 )
 from .compare import compare
 from .controller_replay import controller_replay
-from .report import evaluate
-from .run import run
-from .sweep import Analysis, Case, Row, run_cases
+from .fronts import FRONTS_STUDY, FrontsResult, reproduce_fronts, with_knob_values
+from .study import Reproduction, StudyRuns, studying
+from .sweep import Case, Row
 
 __all__ = [
+    "FRONTS_STUDY",
     "MTPAClaim",
     "MTPARow",
     "MTPAStudyResult",
@@ -97,30 +95,6 @@ class TableRow:
         if self.replay_identical is not None:
             out["replay_identical"] = self.replay_identical
         return out
-
-
-@dataclass(frozen=True)
-class Reproduction:
-    """What every reproduction says of itself: the scenario, the engine, the run length if
-    shortened (then not comparable with the paper), the settings applied to every run, the
-    paper's caption and how our figures are computed."""
-
-    scenario: str
-    engine: str
-    duration: float | None
-    settings: dict[str, Any]
-    paper: str
-    how: str
-
-    def head(self) -> dict[str, Any]:
-        return {
-            "scenario": self.scenario,
-            "engine": self.engine,
-            "duration": self.duration,
-            "settings": self.settings,
-            "paper": self.paper,
-            "how": self.how,
-        }
 
 
 @dataclass(frozen=True)
@@ -236,6 +210,18 @@ class RealismResult(Reproduction):
                 return c
         raise KeyError((scenario, strategy, condition))
 
+    def unequal_fsw(self) -> dict[str, dict[str, str]]:
+        """Per scenario and column, the sentence saying its strategies' switching frequencies
+        differ too much for their ranks to compare them at equal f_sw (columns where they do
+        not are left out)."""
+        out: dict[str, dict[str, str]] = {}
+        for scenario, strategies in self.strategies.items():
+            for c in self.conditions:
+                f = {s: self.cell(scenario, s, c).figures["f_sw_hz"] for s in strategies}
+                if (text := unequal_switching(f)) is not None:
+                    out.setdefault(scenario, {})[c] = text
+        return out
+
     def as_dict(self) -> dict[str, Any]:
         out = {
             **self.head(),
@@ -244,45 +230,11 @@ class RealismResult(Reproduction):
             "hardware": self.hardware,
             "scenario_settings": self.scenario_settings,
             "cells": [dataclasses.asdict(c) for c in self.cells],
+            "unequal_fsw": self.unequal_fsw(),
         }
         if self.figures:
             out["figures"] = [str(p) for p in self.figures]
         return out
-
-
-def _runs(
-    scenario: str,
-    cases: Sequence[Case],
-    *,
-    engine: str,
-    duration: float | None,
-    jobs: int | None,
-    analysis: Analysis | None = None,
-) -> list[Row]:
-    """The cases, each recorded to its bag: a sweep across the cores (in-process), or one
-    graph at a time (a ROS engine, which already uses the cores). A failed case fails the
-    reproduction, naming it."""
-    if engine == "inprocess":
-        result = run_cases(scenario, cases, duration=duration, jobs=jobs, analysis=analysis)
-        if result.interrupted:
-            raise KeyboardInterrupt
-        rows = result.rows
-    else:
-        rows = []
-        for c in cases:
-            with tempfile.TemporaryDirectory() as tmp:
-                path = scenario_with(scenario, c.settings, Path(tmp))
-                r = run(path, strategy=c.strategy, engine=engine, out=c.bag, duration=duration)
-            ev = evaluate(r.bag)
-            extra = analysis(ev.trace, ev.scenario) if analysis is not None else {}
-            rows.append(Row(c.strategy, c.settings, ev.metrics, None, r.wall_s, c.bag, extra))
-    for row in rows:
-        if row.error:
-            raise PredictiveDriveError(
-                f"reproduce {scenario}: the run {row.strategy} {row.settings or ''} failed: "
-                f"{row.error}"
-            )
-    return rows
 
 
 def _figures(row: Row) -> dict[str, float]:
@@ -304,71 +256,105 @@ def _figures(row: Row) -> dict[str, float]:
     }
 
 
-def _bag(out_root: str | Path, name: str) -> str:
-    return str(check_new_bag(Path(out_root) / name).resolve())
-
-
 def reproduce(
     scenario: str,
     *,
     engine: str = "inprocess",
-    out_root: str | Path = "bags",
+    out_root: str | Path | None = None,
     jobs: int | None = None,
     repeats: int = 5,
     duration: float | None = None,
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
     scheduler: str | None = None,
-) -> PaperTableResult | MTPAStudyResult | RealismResult:
+    progress: Callable[[int, int], None] | None = None,
+    lambda_sw: Sequence[float] | None = None,
+    fsw_khz: Sequence[float] | None = None,
+    lambda_u: Sequence[float] | None = None,
+) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study, or the realism study
     (:func:`reproduce_realism`, the one that runs on a Dask cluster at ``scheduler`` too).
     ``duration`` shortens every run (a quick look; the figures then do not compare with the
     paper's). ``figures``: a folder for the runs drawn overlaid (PNG). ``settings``: scenario
     settings applied to every run (e.g. ``{"speed_pi.speed_loop": "immediate"}``), besides each
-    row's own."""
+    row's own. ``out_root``: keep every run's bag in this folder (None: the bags a study needs
+    go to a temporary folder, removed at the end). ``progress(done, planned)``: told as each
+    run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) takes its knobs' values from
+    ``lambda_sw``, ``lambda_u`` and ``fsw_khz`` where given."""
     settings = dict(settings or {})
-    if scenario == REALISM_STUDY:
+    if scenario != FRONTS_STUDY and any(x is not None for x in (lambda_sw, fsw_khz, lambda_u)):
+        raise ConfigError(
+            f"reproduce {scenario}: --lambda-sw, --lambda-u and --fsw-khz choose the fronts "
+            f"study's knobs"
+        )
+    if scenario in (REALISM_STUDY, FRONTS_STUDY):
         if engine != "inprocess":
             raise ConfigError(
-                f"reproduce realism runs as a sweep (in-process, on the local cores or a Dask "
-                f"cluster), not on the {engine} engine: every engine gives the same figures"
+                f"reproduce {scenario} runs as a sweep (in-process, on the local cores or a "
+                f"Dask cluster), not on the {engine} engine: every engine gives the same figures"
             )
-        return reproduce_realism(
-            duration=duration, jobs=jobs, scheduler=scheduler, figures=figures, settings=settings
-        )
-    if scheduler is not None:
+    elif scheduler is not None:
         raise ConfigError(
-            f"reproduce {scenario}: a Dask scheduler serves the realism study only (the "
-            f"tables' bags are drawn and timed here)"
+            f"reproduce {scenario}: a Dask scheduler serves the realism and fronts studies "
+            f"only (the tables' bags are drawn and timed here)"
         )
-    if scenario in MTPA_STUDIES:
-        study = reproduce_mtpa(
-            scenario,
-            engine=engine,
-            out_root=out_root,
-            jobs=jobs,
-            duration=duration,
-            settings=settings,
-        )
-        if figures is None:
-            return study
-        # the runs at exact parameters, one per strategy and form
-        bags = list(dict.fromkeys(str(r.bag) for r in study.rows if r.exact))
-        return dataclasses.replace(study, figures=compare(bags, figures=figures).figures)
-    if scenario not in PAPER_TABLES:
+    elif scenario not in MTPA_STUDIES and scenario not in PAPER_TABLES:
         raise ConfigError(
             f"reproduce: no paper table or study {scenario!r}; available: "
-            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY])}"
+            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])}"
         )
+    if scenario == FRONTS_STUDY:  # its knobs, checked before anything runs
+        fronts = with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz, lambda_u=lambda_u)
+    with studying(
+        out_root,
+        engine=engine,
+        duration=duration,
+        jobs=jobs,
+        scheduler=scheduler,
+        progress=progress,
+    ) as runner:
+        result: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult
+        if scenario == FRONTS_STUDY:
+            result = reproduce_fronts(runner, figures=figures, settings=settings, study=fronts)
+        elif scenario == REALISM_STUDY:
+            result = reproduce_realism(runner, figures=figures, settings=settings)
+        elif scenario in MTPA_STUDIES:
+            result = reproduce_mtpa(scenario, runner, figures=figures, settings=settings)
+        else:
+            result = reproduce_table(
+                scenario, runner, repeats=repeats, figures=figures, settings=settings
+            )
+        kept = runner.kept()
+        result = dataclasses.replace(result, windows=runner.windows, bags=kept)
+    rows = getattr(result, "rows", None)
+    if kept is None and rows is not None:  # their bags went with the temporary folder
+        forgotten: Any = [dataclasses.replace(r, bag=None) for r in rows]
+        result = dataclasses.replace(result, rows=forgotten)
+    return result
+
+
+def reproduce_table(
+    scenario: str,
+    runner: StudyRuns,
+    *,
+    repeats: int = 5,
+    figures: str | Path | None = None,
+    settings: dict[str, Any] | None = None,
+) -> PaperTableResult:
+    """A paper's table (:data:`~predictive_drive.reports.papers.PAPER_TABLES`): every row run
+    again, ours beside the paper's; with compute ratios, each run's decisions replayed and
+    timed afterwards in this process."""
+    settings = dict(settings or {})
     table = PAPER_TABLES[scenario]
-    stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"
     cases = []
     for spec in table.rows:
         tag = re.sub(r"[^A-Za-z0-9_.-]", "", spec.name.replace(" ", "_"))
-        bag = _bag(out_root, f"reproduce_{scenario}_{tag}_{stamp}")
+        bag = runner.bag(
+            f"reproduce_{scenario}_{tag}", needed=table.compute_ratios or figures is not None
+        )
         cases.append(Case(spec.strategy, {**settings, **spec.settings}, bag))
-    runs = _runs(scenario, cases, engine=engine, duration=duration, jobs=jobs)
+    runs = runner.runs(scenario, cases)
     rows = [
         TableRow(spec.name, r.strategy, r.settings, _figures(r), spec.paper, r.bag, r.wall_s)
         for r, spec in zip(runs, table.rows)
@@ -390,7 +376,15 @@ def reproduce(
     if figures is not None:
         drawn = compare([str(r.bag) for r in rows], figures=figures).figures
     return PaperTableResult(
-        scenario, engine, duration, settings, table.caption, table.how, table.columns, rows, drawn
+        scenario,
+        runner.engine,
+        runner.duration,
+        settings,
+        table.caption,
+        table.how,
+        table.columns,
+        rows,
+        drawn,
     )
 
 
@@ -445,28 +439,27 @@ def mtpa_steps(trace: Trace, sc: Scenario) -> dict[str, Any]:
 
 def reproduce_mtpa(
     scenario: str,
+    runner: StudyRuns,
     *,
-    engine: str = "inprocess",
-    out_root: str | Path = "bags",
-    jobs: int | None = None,
-    duration: float | None = None,
+    figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
 ) -> MTPAStudyResult:
     """An MTPA study (:data:`~predictive_drive.reports.papers.MTPA_STUDIES`): a sweep of the
     strategies over the controller-side inductance mismatches, one row per run and load step;
-    the paper's claims checked per load where it makes any."""
+    the paper's claims checked per load where it makes any. ``figures``: the runs at exact
+    parameters drawn overlaid, one per strategy and form."""
     study = MTPA_STUDIES[scenario]
     load_scenario(scenario)  # a bad scenario fails before anything runs
-    stamp = f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}"
     cases, mismatches = [], []
     for strategy, case_settings, mismatch in _mtpa_runs(study):
         tag = f"{strategy}_ld{mismatch['l_d']:g}_lq{mismatch['l_q']:g}"
         if case_settings.get("torque_controller.injection_form") == "as_printed":
             tag += "_as_printed"
-        bag = _bag(out_root, f"reproduce_{scenario}_{tag}_{stamp}")
+        drawn = mismatch == {"l_d": 1.0, "l_q": 1.0} and figures is not None
+        bag = runner.bag(f"reproduce_{scenario}_{tag}", needed=drawn)
         cases.append(Case(strategy, {**(settings or {}), **case_settings}, bag))
         mismatches.append(mismatch)
-    runs = _runs(scenario, cases, engine=engine, duration=duration, jobs=jobs, analysis=mtpa_steps)
+    runs = runner.runs(scenario, cases, analysis=mtpa_steps)
     rows = [
         MTPARow(
             strategy=r.strategy,
@@ -478,16 +471,20 @@ def reproduce_mtpa(
         for r, mismatch in zip(runs, mismatches)
         for step in r.extra["load_steps"]
     ]
-    return MTPAStudyResult(
+    out = MTPAStudyResult(
         scenario=scenario,
-        engine=engine,
-        duration=duration,
+        engine=runner.engine,
+        duration=runner.duration,
         settings=settings or {},
         paper=study.caption,
         how=study.how,
         rows=rows,
         claims=_check_claims(study, rows),
     )
+    if figures is None:
+        return out
+    bags = list(dict.fromkeys(str(r.bag) for r in rows if r.exact))
+    return dataclasses.replace(out, figures=compare(bags, figures=figures).figures)
 
 
 def _check_claims(study: MTPAStudy, rows: list[MTPARow]) -> list[MTPAClaim]:
@@ -564,16 +561,14 @@ _REALISM_HOW = (
 
 
 def reproduce_realism(
+    runner: StudyRuns,
     *,
-    duration: float | None = None,
-    jobs: int | None = None,
-    scheduler: str | None = None,
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
 ) -> RealismResult:
     """The realism study (:mod:`predictive_drive.reports.realism`): every strategy of paper
     000's induction motor and paper 001's IPMSM, ideal and under each column's conditions, run as
-    a sweep on the local cores or the Dask cluster at ``scheduler``. ``settings`` of the real
+    a sweep on the local cores or the Dask cluster (``runner.scheduler``). ``settings`` of the real
     drive's keys (:data:`~..reports.realism.HARDWARE_KEYS`) replace the study's values in the
     columns that have them; any other applies to every run."""
     settings = dict(settings or {})
@@ -590,23 +585,16 @@ def reproduce_realism(
         cases, where = [], []
         for strategy in study.strategies:
             for condition, cs in condition_settings(hardware):
-                cases.append(Case(strategy, {**study.settings, **common, **cs}))
+                bag = runner.bag(f"reproduce_realism_{name}_{strategy}_{condition}")
+                cases.append(Case(strategy, {**study.settings, **common, **cs}, bag))
                 where.append(condition)
         _checked(name, cases)
         plans.append((name, hardware, cases, where))
-    cells, engine = [], ""
+    cells = []
     for name, _, cases, where in plans:
-        swept = run_cases(name, cases, duration=duration, scheduler=scheduler, jobs=jobs)
-        if swept.interrupted:
-            raise KeyboardInterrupt
-        engine = swept.engine
         runs: list[tuple[Row, str, dict[str, float]]] = []
-        for row, condition in zip(swept.rows, where):
-            if row.error or row.metrics is None:
-                raise PredictiveDriveError(
-                    f"reproduce realism: the run {name} {row.strategy} ({condition}) failed: "
-                    f"{row.error}"
-                )
+        for row, condition in zip(runner.runs(name, cases), where):
+            assert row.metrics is not None  # a failed run failed the study (runner.runs)
             runs.append((row, condition, {k: float(getattr(row.metrics, k)) for k in SHOWN}))
         ranks: dict[tuple[str, str], dict[str, int | None]] = {}
         for condition in CONDITIONS:
@@ -620,8 +608,8 @@ def reproduce_realism(
         ]
     out = RealismResult(
         scenario=REALISM_STUDY,
-        engine=engine,
-        duration=duration,
+        engine=runner.where,
+        duration=runner.duration,
         settings=settings,
         paper="the papers' strategies on a drive as real drives are: computation delay, "
         "dead time, sensors",

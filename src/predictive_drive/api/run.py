@@ -15,8 +15,9 @@ from .. import interrupts
 from ..bag import BagWriter, check_new_bag, claim_bag_dir
 from ..config import OWN_NODES, load_scenario, scenario_with
 from ..core.control import EXTERNAL, strategy_names
+from ..core.control.base import parse_switch
 from ..core.metrics import Metrics
-from ..core.runner import run_inprocess
+from ..core.runner import build_controller, run_inprocess
 from ..core.scenario import Scenario
 from ..core.signals import external_name
 from ..core.timebase import step_index
@@ -62,19 +63,30 @@ class RunResult:
 
 
 def switch_steps(sc: Scenario, switches: Sequence[tuple[float, str]]) -> list[tuple[int, str]]:
-    """``--switch T:STRATEGY`` pairs → (step, strategy); ConfigError for an unknown strategy or
-    a time outside the run."""
+    """``--switch T:STRATEGY`` (or ``T:horizon=N``) pairs → (step, switch); ConfigError for an
+    unknown strategy, a horizon the law in force cannot take (each switch checked after the ones
+    before it, by the controller itself), or a time outside the run."""
     names = strategy_names(sc.family)
     out = []
-    in_force = sc.strategy
+    ctrl = build_controller(sc) if switches and not sc.external else None
+    in_force: dict[str, Any] = {"strategy": sc.strategy, "horizon": getattr(ctrl, "horizon", 1)}
     for t, name in sorted(switches):
-        if name not in names:
+        try:
+            key, value = parse_switch(name)
+        except ValueError as e:
+            raise ConfigError(f"--switch {t}:{e}") from None
+        if key == "strategy" and name not in names:
             raise ConfigError(f"--switch {t}:{name}: unknown strategy; valid: {', '.join(names)}")
         if not (0 <= t < sc.run.duration):
             raise ConfigError(f"--switch {t}:{name}: time must lie in [0, {sc.run.duration}) s")
-        if name == in_force:
-            raise ConfigError(f"--switch {t}:{name}: {name} is already the strategy then")
-        in_force = name
+        if value == in_force[key]:
+            raise ConfigError(f"--switch {t}:{name}: {value} is already the {key} then")
+        reason = ctrl.switch_refusal(key, value) if ctrl is not None else None
+        if reason is not None:
+            raise ConfigError(f"--switch {t}:{name}: {reason}")
+        if ctrl is not None:
+            ctrl.switch(key, value)
+        in_force[key] = value
         out.append((step_index(t, sc.ts), name))
     return out
 
@@ -206,6 +218,7 @@ def run(
     external: Mapping[str, str | None] | None = None,
     label: str | None = None,
     startup_timeout: float = 60.0,
+    announce: Callable[[str], None] | None = None,
 ) -> RunResult:
     """Run a scenario on an engine, record it, and evaluate the recording. ``affinity`` and
     ``sched``: CPU placement (``paired`` | ``none``, see
@@ -220,7 +233,9 @@ def run(
     place of ours, by name (``torque_controller``, ``speed_pi``): the command that starts one,
     or None to start it by hand (docs/ros.md#writing-your-own-controller); their sections of
     the scenario (and ``settings`` of them) are theirs, not checked; ``label``: the name of a
-    torque controller of one's own, ``external:LABEL`` in the recording, tables and figures."""
+    torque controller of one's own, ``external:LABEL`` in the recording, tables and figures;
+    ``announce``: told what the user should know before the run starts (where the live view
+    serves), once every check has passed."""
     if engine not in ENGINES:
         raise ConfigError(f"--engine: {engine!r} is not one of {', '.join(ENGINES)}")
     external = dict(external or {})
@@ -246,6 +261,11 @@ def run(
         check_new_bag(bag)
         if live:
             check_port(live)
+            if announce is not None:
+                announce(
+                    f"live view on ws://127.0.0.1:{live} (Foxglove / Lichtblick: open "
+                    "connection, Foxglove WebSocket)"
+                )
         t0 = time.perf_counter()
         # claimed before anything starts: a second run given the same --out is refused
         with claim_bag_dir(bag):

@@ -36,6 +36,7 @@ from ..core.metrics import Metrics
 from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
 from ..core.trace import Trace
+from ..dependencies import missing
 from ..errors import ConfigError, PredictiveDriveError
 from .report import metrics_of
 
@@ -263,9 +264,7 @@ def _executor(scheduler: str | None, jobs: int | None, cases: int) -> Iterator[t
     try:
         from distributed import Client
     except ImportError:
-        raise ConfigError(
-            "--scheduler needs dask.distributed: pip install 'predictive_drive[sweep]'"
-        ) from None
+        raise missing("distributed", "--scheduler") from None
     try:
         client = Client(scheduler, timeout=10)
     except (OSError, TimeoutError) as e:
@@ -456,27 +455,57 @@ def _pyarrow() -> tuple[Any, Any]:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        raise ConfigError(
-            "sweep --out needs pyarrow for the Parquet table: pip install 'predictive_drive[sweep]'"
+        raise missing(
+            "pyarrow", "sweep --out: the Parquet table (FILE.csv: the CSV alone)"
         ) from None
     return pa, pq
 
 
-def write_table(rows: Sequence[Row], directory: str | Path, name: str = "sweep") -> list[Path]:
-    """``<name>.csv`` and ``<name>.parquet`` in ``directory``; written whole or not at all
-    (each to a temporary file, then renamed)."""
-    pa, pq = _pyarrow()
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
+def table_files(out: str | Path) -> list[Path]:
+    """What ``--out`` writes: ``FILE.csv`` (the CSV table alone), ``FILE.parquet`` (Parquet
+    alone), or a folder ``DIR``: ``DIR/sweep.csv`` and ``DIR/sweep.parquet``."""
+    p = Path(out)
+    if p.suffix in (".csv", ".parquet"):
+        return [p]
+    return [p / "sweep.csv", p / "sweep.parquet"]
+
+
+def check_table_files(out: str | Path) -> list[Path]:
+    """:func:`table_files`, checked before anything runs: Parquet needs pyarrow, a file must
+    not be a folder."""
+    files = table_files(out)
+    for f in files:
+        if f.is_dir():
+            raise ConfigError(f"sweep --out {out}: {f} is a folder, not a table file")
+        if f.suffix == ".parquet":
+            _pyarrow()
+    return files
+
+
+def write_table(rows: Sequence[Row], out: str | Path) -> list[Path]:
+    """The table as :func:`table_files` names it; each file written whole or not at all (to a
+    temporary file, then renamed)."""
     header, body = table(rows)
-    csv_path, pq_path = d / f"{name}.csv", d / f"{name}.parquet"
-    tmp = csv_path.with_suffix(".csv.tmp")
-    with tmp.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(header)
-        for line in body:
-            w.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in line])
-    tmp.replace(csv_path)
+    files = table_files(out)
+    for f in files:
+        f.parent.mkdir(parents=True, exist_ok=True)
+        tmp = f.with_name(f.name + ".tmp")
+        if f.suffix == ".csv":
+            with tmp.open("w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(header)
+                for line in body:
+                    w.writerow(
+                        ["" if v is None else repr(v) if isinstance(v, float) else v for v in line]
+                    )
+        else:
+            _write_parquet(header, body, tmp)
+        tmp.replace(f)
+    return files
+
+
+def _write_parquet(header: list[str], body: list[list[Any]], path: Path) -> None:
+    pa, pq = _pyarrow()
     columns = {}
     for j, name_ in enumerate(header):
         values = [line[j] for line in body]
@@ -486,10 +515,7 @@ def write_table(rows: Sequence[Row], directory: str | Path, name: str = "sweep")
             if numeric and name_ not in ("strategy", "error")
             else pa.array(["" if v is None else str(v) for v in values], pa.string())
         )
-    tmp = pq_path.with_suffix(".parquet.tmp")
-    pq.write_table(pa.table(columns), tmp)
-    tmp.replace(pq_path)
-    return [csv_path, pq_path]
+    pq.write_table(pa.table(columns), path)
 
 
 def sweep(
@@ -512,8 +538,11 @@ def sweep(
     parsed = [parse_set(s) for s in sets]
     cases = grid(list(strategies) or [base.strategy], parsed)
     if record:
-        if out is None:
-            raise ConfigError("sweep --record needs --out DIR (the bags go to DIR/bags/)")
+        if out is None or len(table_files(out)) == 1:
+            raise ConfigError(
+                f"sweep --record needs --out DIR, a folder (the bags go to DIR/bags/), "
+                f"not {'nothing' if out is None else out}"
+            )
         from ..bag import check_new_bag
 
         for i, c in enumerate(cases):
@@ -521,7 +550,7 @@ def sweep(
             bag = Path(out) / "bags" / f"{i:03d}_{c.strategy}{'_' + tag if tag else ''}"
             cases[i] = Case(c.strategy, c.settings, str(check_new_bag(bag).resolve()))
     if out is not None:
-        _pyarrow()  # the table can be written: checked before the runs, not after
+        check_table_files(out)  # the table can be written: checked before the runs, not after
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration}")
     result = run_cases(

@@ -84,10 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     for name in VERBS:
         verb = _verb(name)
-        parents = [json_option] if getattr(verb, "JSON", True) else []
-        sp = sub.add_parser(name, help=verb.HELP, description=verb.HELP, parents=parents)
+        sp = sub.add_parser(name, help=verb.HELP, description=verb.HELP, parents=[json_option])
         verb.add_arguments(sp)
-        sp.set_defaults(main=verb.main)
+        sp.set_defaults(main=verb.main, parser=sp)
     return p
 
 
@@ -115,7 +114,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, interrupts.interrupt)
         if _pending:
             raise KeyboardInterrupt
-        args = parser.parse_args(argv)
+        args, unknown = parser.parse_known_args(argv)
+        if unknown:  # said with the verb's usage, not the command's
+            args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
         as_json = bool(getattr(args, "json", False))
         return int(args.main(args))
     except KeyboardInterrupt:
@@ -130,6 +131,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except PredictiveDriveError as e:
         _say_error(e, as_json)
+        return 2
+    except ModuleNotFoundError as e:
+        # a package the command needs is not installed (a ROS workspace built without rosdep,
+        # a venv without an extra): one line that names it, also for --help
+        if e.name is None or e.name.split(".")[0] == "predictive_drive":
+            raise  # a module of our own missing is a broken install: its traceback says where
+        from ..dependencies import how_to_install
+        from ..errors import MissingDependency
+
+        _say_error(MissingDependency(how_to_install(e.name)), as_json)
         return 2
 
 

@@ -16,6 +16,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, help="steps of each in-process run (default 20000)")
     p.add_argument("--no-ros", action="store_true", help="skip the graph engines")
     p.add_argument(
+        "--no-horizons", action="store_true", help="skip the long-horizon laws (mptc, direct_mpc)"
+    )
+    p.add_argument(
         "--quick", action="store_true", help="short runs: a smoke test, not a measurement"
     )
     p.add_argument(
@@ -37,6 +40,7 @@ def main(a: argparse.Namespace) -> int:
         ros=not a.no_ros,
         quick=a.quick,
         graph=[k for k in (a.graph or "").split(",") if k],
+        horizons=not a.no_horizons,
     )
     if a.json:
         return say_json(d)
@@ -72,4 +76,12 @@ def main(a: argparse.Namespace) -> int:
             )
     for name, us in d.compute_us_per_step.items():
         print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")
+    for h in d.horizons:
+        decoder = f", {h.decoder} decoder" if h.decoder != "-" else ""
+        print(
+            f"{h.strategy} N={h.horizon:<2} ({h.scenario}, {h.steps} steps{decoder}): "
+            f"{h.steps_per_s:,.0f} steps/s ({h.of_core:.3f} of the core loop); compute "
+            f"{h.compute_us_median:,.1f} µs median, {h.compute_us_p99:,.1f} µs p99; "
+            f"{h.nodes_mean:,.0f} nodes/step"
+        )
     return 0

@@ -7,6 +7,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -16,7 +17,17 @@ if TYPE_CHECKING:
     from ..api.report import RecordingDetails
     from ..core.metrics import Metrics
 
-__all__ = ["dumps", "given", "print_recording", "progress", "refuse", "say_json"]
+__all__ = [
+    "dumps",
+    "given",
+    "print_recording",
+    "progress",
+    "refuse",
+    "runs_progress",
+    "say_json",
+    "scenario_argument",
+    "seconds",
+]
 
 
 def _finite(obj: Any) -> Any:
@@ -56,7 +67,8 @@ def say_json(result: _Result) -> int:
 def progress(
     enabled: bool, unit: str = "step"
 ) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
-    """``(update(k, n), close())`` of a progress bar on stderr, or ``(None, no-op)``."""
+    """``(update(k, n), close())`` of a progress bar on stderr, or ``(None, no-op)``. ``n`` may
+    grow between updates (a study plans its runs sweep by sweep): the bar follows it."""
     if not enabled:
         return None, lambda: None
     from tqdm import tqdm
@@ -69,6 +81,8 @@ def progress(
                 total=n, unit=unit, unit_scale=unit == "step", file=sys.stderr, leave=False
             )
         b = bar["bar"]
+        if b.total != n:
+            b.total = n
         b.update(k - b.n)
 
     def close() -> None:
@@ -76,6 +90,54 @@ def progress(
             bar["bar"].close()
 
     return update, close
+
+
+def runs_progress(
+    what: str, *, quiet: bool
+) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
+    """``(update(done, planned), close())`` for a verb that makes many runs (``sweep``,
+    ``reproduce``), on stderr: a bar on a terminal; elsewhere (a log, a pipe) a line per finished
+    run, ``what: run 2 of 3 done (14.2 s)``; nothing when ``quiet`` (``--json``)."""
+    if quiet:
+        return None, lambda: None
+    if sys.stderr.isatty():
+        return progress(True, unit="run")
+    t0 = time.perf_counter()
+
+    def line(done: int, planned: int) -> None:
+        print(
+            f"{what}: run {done} of {planned} done ({time.perf_counter() - t0:.1f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return line, lambda: None
+
+
+def seconds(text: str) -> float:
+    """An option's simulated seconds (``--duration``): a finite number above 0, else the
+    verb's usage error naming the option."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
+def scenario_argument(p: argparse.ArgumentParser) -> None:
+    """The SCENARIO argument, its help listing the scenarios there are (``--help`` shows them)."""
+    from ..config import scenario_names
+
+    try:
+        names = ", ".join(scenario_names())
+    except ConfigError as e:  # an install without its scenario folder: say so where they go
+        names = f"none found ({e})"
+    p.add_argument(
+        "scenario",
+        help=f"a scenario by name: {names}; or the path of a scenario file (.yaml)",
+    )
 
 
 def given(args: argparse.Namespace, name: str) -> bool:
@@ -126,7 +188,10 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         + (f"  wall {wall_s:.2f} s" if wall_s is not None else "")
     )
     print(f"bag      {r.bag}")
-    print(f"window   {m.t_start:.4g}-{m.t_end:.4g} s ({m.steps} steps)")
+    print(
+        f"window   {m.t_start:.4g}-{m.t_end:.4g} s ({m.steps} steps)   the figures below are over "
+        "it (the scenario's, cut to the run)"
+    )
     rows = [(METRICS[k], getattr(m, k)) for k in SHOWN]
     rows.append((METRICS["compute_ns_median"], m.compute_ns_median))
     for shown, value in rows:
@@ -141,7 +206,7 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         )
     if all(math.isfinite(u) for u in m.utilization) and any(m.utilization):
         util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m.utilization))
-        print(f"  {'vectors':<11}{util}")
+        print(f"  {'vectors':<11}{util}   {METRICS['utilization'].description}")
     d = r.details
     if len(d.strategies) > 1:
         for sp in d.strategies:
@@ -154,6 +219,10 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         print(f"  {'your node':<11}{node.name}: {node.started}; parameters: {given}")
     if d.outcome:
         print(f"  {'outcome':<11}{d.outcome}")
+        print(
+            f"  {'':<11}the recorder's verdict; its figures cover the whole run, T_RMSE above "
+            "the window"
+        )
     for e in d.parameter_events:
         changes = ", ".join(f"{k} = {v}" for k, v in e.changed.items())
         print(f"  {'parameter':<11}{e.t:>14.6g} s   {e.node}: {changes}")

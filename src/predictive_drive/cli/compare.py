@@ -12,7 +12,7 @@ HELP = "recordings side by side: metrics, overlaid figures"
 #: the table's rows, by metric (how each is shown: core.metrics.METRICS)
 ROWS = (
     "t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "cal_ave", "deadbeat_share", "speed_rmse", "thd",
-    "compute_ns_median",
+    "compute_ns_median", "t_ripple_cont", "t_rmse_cont", "i_thd_cont",
 )  # fmt: skip
 
 
@@ -31,6 +31,8 @@ def main(a: argparse.Namespace) -> int:
         shown = METRICS[key]
         cells = "".join(f"{shown.format(getattr(run.metrics, key)):>{width}}" for run in r.runs)
         print(f"{shown.heading:<22}" + cells)
+    if r.unequal_fsw:
+        print(f"note: {r.unequal_fsw}")
     for f in r.figures:
         print(f"figure {f}")
     return 0

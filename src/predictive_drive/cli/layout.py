@@ -3,18 +3,28 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+from .common import dumps
 
 HELP = "write a Foxglove / Lichtblick layout for the drive's topics (JSON)"
-JSON = False  # prints one line: no --json
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="drive.foxglove.json", help="default: %(default)s")
+    p.add_argument("--force", action="store_true", help="replace the file if it exists")
 
 
 def main(a: argparse.Namespace) -> int:
     from ..reports.layout import write_layout
 
-    path = write_layout(a.out)
-    print(f"wrote {path}: import it in Foxglove or Lichtblick (Layouts → Import from file)")
+    replaced = a.force and Path(a.out).exists()
+    path = write_layout(a.out, replace=a.force)
+    if a.json:
+        print(dumps({"layout": str(path), "replaced": replaced}))
+        return 0
+    print(
+        f"{'replaced' if replaced else 'wrote'} {path}: import it in Foxglove or Lichtblick "
+        "(Layouts → Import from file)"
+    )
     return 0

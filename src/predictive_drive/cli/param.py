@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 
 from ..errors import ConfigError
+from .common import dumps
 
 HELP = (
     "get or set a parameter of a running node (uses ROS_DOMAIN_ID; `run` prints the domain of "
     "its graph)"
 )
-JSON = False
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -21,15 +21,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(a: argparse.Namespace) -> int:
+    from ..interface import node_name
     from ..ros.params import param
 
     if a.action == "get":
         if a.value is not None:
             raise ConfigError("param get takes NODE NAME only")
-        print(param(node=a.node, name=a.name))
+        value = param(node=a.node, name=a.name)
     else:
         if a.value is None:
             raise ConfigError("param set needs NODE NAME VALUE")
-        param(node=a.node, name=a.name, value=a.value)
+        value = param(node=a.node, name=a.name, value=a.value)
+    if a.json:
+        print(
+            dumps({"action": a.action, "node": node_name(a.node), "name": a.name, "value": value})
+        )
+    elif a.action == "get":
+        print(value)
+    else:
         print(f"set {a.name} = {a.value} on {a.node}")
     return 0

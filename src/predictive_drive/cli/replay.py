@@ -4,6 +4,7 @@ controller node step by step (``--into``)."""
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..api.replay import replay, replay_into
 from ..core.metrics import METRICS
@@ -45,10 +46,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                       help="publish /clock from the replayed time at HZ (default 40) instead of "
                       "the recorded /clock")  # fmt: skip
     play.add_argument("--start-paused", action="store_true",
-                      help="start paused (`predictive-drive param set player paused false`)")  # fmt: skip
+                      help="start paused (it says how to resume: `predictive-drive param set player "
+                      "paused false` on its ROS_DOMAIN_ID)")  # fmt: skip
     play.add_argument("--wait-for", type=int, metavar="N",
                       help="before the first message, wait until each played topic has N "
-                      "subscribers (default: a discovery settle of 1 s or more, until the "
+                      "subscribers (default: a discovery settle of 3 s or more, until the "
                       "subscribers already running have matched)")  # fmt: skip
     into = p.add_argument_group("replaying into a node (--into)")
     into.add_argument(
@@ -87,6 +89,15 @@ def main(a: argparse.Namespace) -> int:
         "start_paused": a.start_paused,
         "wait_for": a.wait_for,
     }
+    if a.start_paused:
+        from ..ros.params import domain_id
+
+        print(
+            "predictive-drive: the replay starts paused; to start it, from another shell: "
+            f"ROS_DOMAIN_ID={domain_id()} predictive-drive param set player paused false",
+            file=sys.stderr,
+            flush=True,
+        )
     d = replay(a.bag, **{k: v for k, v in options.items() if v is not None})
     if a.json:
         say_json(d)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..api.fronts import FRONTS_STUDY, FrontsResult
 from ..api.reproduce import (
     REALISM_STUDY,
     MTPAStudyResult,
@@ -16,22 +17,40 @@ from ..api.run import ENGINES
 from ..core.metrics import METRICS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
 from ..reports.realism import RANKED, SHOWN
-from .common import refuse, say_json, single_settings
+from .common import refuse, runs_progress, say_json, seconds, single_settings
 
-HELP = "a paper's table side by side with our figures (or an MTPA study, or the realism study)"
+HELP = (
+    "a paper's table side by side with our figures (or an MTPA study, the realism study, or "
+    "the fronts of distortion against switching frequency)"
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY]))
-    p.add_argument("--engine", default="inprocess", choices=ENGINES)
+    p.add_argument(
+        "scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])
+    )
+    p.add_argument(
+        "--engine",
+        default="inprocess",
+        choices=ENGINES,
+        help="where each run is made (default: inprocess, the runs in parallel across the "
+        "cores; ros, composed: one graph after another; the figures are the same on every "
+        "engine, the measured compute times aside)",
+    )
     p.add_argument(
         "--repeats", type=int, help="timing repeats for the compute ratios (median; default 5; "
         "ipmsm_validation only, the one table with compute ratios)",
     )  # fmt: skip
     p.add_argument(
-        "--duration", type=float, help="shorten every run to this many simulated seconds"
+        "--duration", type=seconds, help="shorten every run to this many simulated seconds"
     )
     p.add_argument("--figures", metavar="DIR", help="draw the table's runs, overlaid (PNG)")
+    p.add_argument(
+        "--bags",
+        metavar="DIR",
+        help="keep every run's bag in DIR (default: none kept; the bags the study needs for "
+        "its figures or its timing are recorded to a temporary folder and removed)",
+    )
     p.add_argument(
         "--set",
         action="append",
@@ -41,43 +60,98 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "in the columns that have it",
     )
     p.add_argument(
-        "--scheduler", metavar="ADDRESS", help="realism only: run on this Dask cluster "
-        "(e.g. tcp://host:8786) instead of the local cores",
+        "--scheduler", metavar="ADDRESS", help="realism and fronts only: run on this Dask "
+        "cluster (e.g. tcp://host:8786) instead of the local cores",
     )  # fmt: skip
+    p.add_argument(
+        "--lambda-sw", metavar="V1,V2,...", type=_numbers,
+        help="fronts only: the switching-effort weights every finite-control-set curve is "
+        "traced over (default: each curve's own)",
+    )  # fmt: skip
+    p.add_argument(
+        "--lambda-u", metavar="V1,V2,...", type=_numbers,
+        help="fronts only: the switching weights every direct_mpc curve is traced over "
+        "(default: each curve's own)",
+    )  # fmt: skip
+    p.add_argument(
+        "--fsw-khz", metavar="F1,F2,...", type=_numbers,
+        help="fronts only: the carrier frequencies (kHz; ts = 1/f_sw) every FOC curve is "
+        "traced over (default 0.5,1,2,3,5,7,10,15,20)",
+    )  # fmt: skip
+    p.add_argument(
+        "--jobs", type=int, help="realism and fronts: local processes (default: every core)"
+    )
+
+
+def _numbers(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected numbers separated by commas, got {text!r}"
+        ) from None
 
 
 def main(a: argparse.Namespace) -> int:
     table = PAPER_TABLES.get(a.scenario)
     if table is None or not table.compute_ratios:
         refuse(a, f"times the compute ratios, which {a.scenario} has none of", "repeats")
-    if a.scenario != REALISM_STUDY:
-        refuse(a, f"serves the realism study only, not {a.scenario}", "scheduler")
+    if a.scenario not in (REALISM_STUDY, FRONTS_STUDY):
+        refuse(a, f"serves the realism and fronts studies only, not {a.scenario}", "scheduler")
+        refuse(a, f"runs the realism and fronts studies only, not {a.scenario}", "jobs")
+    if a.scenario != FRONTS_STUDY:
+        refuse(
+            a, f"chooses the fronts study's knobs, not {a.scenario}'s",
+            "lambda_sw", "lambda_u", "fsw_khz",
+        )  # fmt: skip
     settings = single_settings(a.set)
-    d = reproduce(
-        a.scenario,
-        engine=a.engine,
-        repeats=5 if a.repeats is None else a.repeats,
-        duration=a.duration,
-        figures=a.figures,
-        settings=settings,
-        scheduler=a.scheduler,
-    )
+    update, close = runs_progress(f"reproduce {a.scenario}", quiet=a.json)
+    try:
+        d = reproduce(
+            a.scenario,
+            engine=a.engine,
+            out_root=a.bags,
+            repeats=5 if a.repeats is None else a.repeats,
+            duration=a.duration,
+            figures=a.figures,
+            settings=settings,
+            scheduler=a.scheduler,
+            jobs=a.jobs,
+            lambda_sw=a.lambda_sw,
+            fsw_khz=a.fsw_khz,
+            lambda_u=a.lambda_u,
+            progress=update,
+        )
+    finally:
+        close()
     if a.json:
         return say_json(d)
     if isinstance(d, MTPAStudyResult):
         print_mtpa(d)
     elif isinstance(d, RealismResult):
         print_realism(d)
+    elif isinstance(d, FrontsResult):
+        print_fronts(d)
     else:
         print_table(d)
     for f in d.figures:
         print(f"figure {f}")
+    if d.bags is not None:
+        print(f"bags   {d.bags.count} in {d.bags.folder} ({d.bags.bytes / 1e6:.1f} MB)")
     return 0
 
 
-def _settings(d: PaperTableResult | MTPAStudyResult | RealismResult) -> None:
+def _settings(d: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult) -> None:
     if d.duration is not None:
-        print(f"NOTE: runs shortened to {d.duration:g} s; not comparable with the paper")
+        windows = "; ".join(
+            (f"{name} " if len(d.windows) > 1 else "")
+            + ", ".join(f"{lo:.4g}-{hi:.4g} s" for lo, hi in spans)
+            for name, spans in d.windows.items()
+        )
+        print(
+            f"NOTE: runs shortened to {d.duration:g} s, so the figures are over the window "
+            f"{windows}, not the paper's; not comparable with the paper"
+        )
     if d.settings:
         print("every run with " + ", ".join(f"{k} = {v}" for k, v in d.settings.items()))
 
@@ -158,4 +232,45 @@ def print_realism(d: RealismResult) -> None:
                         text += f" ({place})"
                     line += f" {text:>15}"
                 print(line)
+        for condition, text in d.unequal_fsw().get(scenario, {}).items():
+            print(f"  {condition}: {text}")
+    print(f"How computed: {d.how}")
+
+
+def print_fronts(d: FrontsResult) -> None:
+    print(f"{d.scenario}: {d.paper}  ({d.engine}, {d.runs} runs, {d.wall_s:.0f} s)")
+    _settings(d)
+    f_sw = METRICS["f_sw_hz"]
+    heads = "".join(f" {f_sw.format(f):>7} kHz" for f in d.frequencies)
+    for t in d.points:
+        print()
+        print(f"{t.point}: {t.caption}")
+        width = max(14, *(len(c.name) for c in t.curves)) + 1
+        for c in t.curves:
+            print(f"  {c.name:<{width}} over {c.knob}")
+            for p in c.points:
+                marks = "".join(
+                    "*" if p.on_front[k] else " " for k in ("t_ripple_cont", "i_thd_cont")
+                )
+                cells = " ".join(
+                    f"{METRICS[k].heading} {METRICS[k].format(p.figures[k])}"
+                    for k in ("f_sw_hz", "t_ripple_cont", "i_thd_cont", "t_rmse_cont")
+                )
+                lost = "" if p.holds else "  (left the operating point)"
+                print(f"    {marks} {c.knob.rsplit('.', 1)[-1]} = {p.value:<8g} {cells}{lost}")
+        for key, ranked in t.ranking.items():
+            metric = METRICS[key]
+            print(f"  {metric.heading:<{width}}{heads}")
+            for name, values in t.at[key].items():
+                cells = "".join(f" {metric.format(v):>11}" for v in values)
+                print(f"    {name:<{width - 2}}{cells}")
+            best = "".join(f" {(r[0] if r else '-'):>11}" for r in ranked)
+            print(f"    {'lowest':<{width - 2}}{best}")
+        if t.papers_ranking:
+            print(f"  papers' ranking ({t.papers_source}): " + " < ".join(t.papers_ranking))
+        for key, ranked in t.ranking.items():
+            for f, order in zip(d.frequencies, ranked):
+                if len(order) > 1:
+                    print(f"  {METRICS[key].title} at {f_sw.format(f)} kHz: " + " < ".join(order))
+    print("(* on the front of T_ripple, THD_i)")
     print(f"How computed: {d.how}")

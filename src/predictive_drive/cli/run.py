@@ -9,7 +9,15 @@ from ..api.run import ENGINES, run
 from ..errors import ConfigError
 from ..live import DEFAULT_PORT
 from ..ros.placement import AFFINITIES, SCHED_POLICIES
-from .common import print_recording, progress, refuse, say_json, single_settings
+from .common import (
+    print_recording,
+    progress,
+    refuse,
+    say_json,
+    scenario_argument,
+    seconds,
+    single_settings,
+)
 
 HELP = "run a scenario, record it to bags/<run>/ and print its metrics"
 
@@ -22,7 +30,7 @@ def _switch(text: str) -> tuple[float, str]:
         return float(t), name
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected T:STRATEGY (e.g. 2.5:mptc), got {text!r}"
+            f"expected T:STRATEGY or T:horizon=N (e.g. 2.5:mptc), got {text!r}"
         ) from None
 
 
@@ -38,10 +46,9 @@ def _external(texts: list[str]) -> dict[str, str | None]:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="scenario name (im_paper, im_short, ...: the files of "
-                   "config/) or a path to a scenario .yaml")  # fmt: skip
+    scenario_argument(p)
     p.add_argument("--strategy", help="override the scenario's torque_controller.strategy")
-    p.add_argument("--duration", type=float, help="simulated seconds (default: the scenario's)")
+    p.add_argument("--duration", type=seconds, help="simulated seconds (default: the scenario's)")
     p.add_argument(
         "--set", action="append", metavar="KEY=VALUE",
         help="a scenario setting, e.g. plant.actuation_delay_steps=1 or "
@@ -112,7 +119,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--switch", action="append", type=_switch, metavar="T:STRATEGY",
-        help="switch the strategy at simulated time T (repeatable)",
+        help="switch the strategy at simulated time T, or its horizon (T:horizon=N) "
+        "(repeatable)",
     )  # fmt: skip
 
 
@@ -123,12 +131,6 @@ def main(a: argparse.Namespace) -> int:
     if a.engine == "inprocess":
         refuse(a, "applies to the ROS engines only (there are no peers in-process)",
                "peer_timeout", "startup_timeout")  # fmt: skip
-    if a.live:
-        print(
-            f"predictive-drive: live view on ws://127.0.0.1:{a.live} (Foxglove / Lichtblick: "
-            "open connection, Foxglove WebSocket)",
-            file=sys.stderr,
-        )
     update, close = progress(sys.stderr.isatty() and not a.json)
     try:
         r = run(
@@ -147,6 +149,7 @@ def main(a: argparse.Namespace) -> int:
             live=a.live or 0,
             external=_external(a.external or []),
             label=a.label,
+            announce=lambda line: print(f"predictive-drive: {line}", file=sys.stderr, flush=True),
         )
     finally:
         close()

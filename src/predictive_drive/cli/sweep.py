@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 from ..api.sweep import SweepResult, sweep
 from ..core.metrics import METRICS
-from .common import progress, refuse, say_json
+from .common import refuse, runs_progress, say_json, scenario_argument, seconds
 
 HELP = (
     "a grid of in-process runs (strategies x settings) on the local cores or a Dask cluster, "
@@ -18,7 +17,7 @@ COLUMNS = ("t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "thd")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="scenario name (config/NAME.yaml) or a scenario file")
+    scenario_argument(p)
     p.add_argument("--strategy", metavar="A,B,...", help="strategies (default: the scenario's)")
     p.add_argument(
         "--set",
@@ -28,9 +27,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "torque_controller.motor.l_q; *0.7 = 70 %% of the present value); repeat for more keys: "
         "the grid is their cartesian product",
     )
-    p.add_argument("--duration", type=float, help="simulated seconds of every run")
-    p.add_argument("--out", metavar="DIR", help="write DIR/sweep.csv and DIR/sweep.parquet")
-    p.add_argument("--record", action="store_true", help="keep every run's bag in DIR/bags/")
+    p.add_argument("--duration", type=seconds, help="simulated seconds of every run")
+    p.add_argument(
+        "--out",
+        metavar="DIR|FILE",
+        help="write the table: DIR/sweep.csv and DIR/sweep.parquet (Parquet needs pyarrow), or "
+        "FILE.csv alone, or FILE.parquet alone",
+    )
+    p.add_argument(
+        "--record", action="store_true", help="keep every run's bag in DIR/bags/ (--out DIR)"
+    )
     p.add_argument("--figures", metavar="DIR", help="each metric against each swept key (PNG)")
     p.add_argument(
         "--scheduler",
@@ -44,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(a: argparse.Namespace) -> int:
     if a.scheduler:
         refuse(a, "sets the local processes; with --scheduler the cluster's workers run", "jobs")
-    update, close = progress(sys.stderr.isatty() and not a.json, unit="run")
+    update, close = runs_progress(f"sweep {a.scenario}", quiet=a.json)
     try:
         r = sweep(
             a.scenario,

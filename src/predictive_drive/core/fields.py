@@ -151,9 +151,10 @@ def spec_of(f: dataclasses.Field[Any]) -> Quantity | None:
 
 
 def check_fields(obj: Any) -> None:
-    """Check every field of a dataclass instance against its metadata (call in __post_init__)."""
-    name = type(obj).__name__
+    """Check every field of a dataclass instance against its metadata (call in __post_init__).
+    An error names the field as a user writes it (the key, not the class): whoever reads the
+    value from a file or an option puts where it came from in front (``config`` does)."""
     for f in dataclasses.fields(obj):
         q = spec_of(f)
         if q is not None:
-            q.check(f"{name}.{f.name}", getattr(obj, f.name))
+            q.check(f.name, getattr(obj, f.name))

@@ -22,7 +22,13 @@ from .timebase import every_steps, step_index
 from .trace import Trace
 
 __all__ = [
+    "EQUAL_FSW_SHARE",
     "METRICS",
+    "Cycles",
+    "continuous_current_thd",
+    "continuous_ripple",
+    "continuous_rmse",
+    "whole_cycles",
     "Metric",
     "Metrics",
     "Spectrum",
@@ -30,6 +36,7 @@ __all__ = [
     "metric",
     "phase_a_spectrum",
     "step_window",
+    "unequal_switching",
 ]
 
 _KEY = "predictive_drive.metric"
@@ -124,7 +131,11 @@ class Metrics:
     )  # fmt: skip
     cal_ave: float = metric("Cal_ave", fmt=".2f", description="vector predictions per step")
     utilization: tuple[float, ...] = metric(
-        "vectors", "%", scale=100.0, fmt=".1f", description="share of steps choosing V0..V6"
+        "vectors",
+        "%",
+        scale=100.0,
+        fmt=".1f",
+        description="share of steps per vector, V0 zero",
     )
     deadbeat_share: float = metric(
         "deadbeat", "%", scale=100.0, fmt=".2f", description="steps with 0 < t_u < Ts"
@@ -135,7 +146,10 @@ class Metrics:
     compute_ns_median: float = metric(
         "compute", "µs/step", scale=1e-3, fmt=".2f", description="median, control law only"
     )
-    speed_rmse: float = metric("speed_RMSE", "rad/s", fmt=".3f", description="omega_m vs omega_m*")
+    speed_rmse: float = metric(
+        "speed_RMSE", "rad/s", fmt=".3f",
+        description="omega_m vs omega_m*, its steps (start, reversal) included",
+    )  # fmt: skip
     compute_ns_median_by_strategy: dict[str, float] = metric(
         "compute", "µs/step", scale=1e-3, fmt=".2f", description="median per strategy"
     )
@@ -150,6 +164,24 @@ class Metrics:
     )  # fmt: skip
     thd_cycles: int = metric("THD cycles", fmt="d", default=0)
     thd_fundamental_hz: float = metric("THD fundamental", "Hz", fmt=".1f", default=math.nan)
+    t_rmse_cont: float = metric(
+        "T_RMSE cont", "N·m", default=math.nan,
+        description="sqrt(mean((T_e - T*)^2)) over continuous time, between the samples too",
+    )  # fmt: skip
+    t_ripple_cont: float = metric(
+        "T_ripple cont", "N·m", default=math.nan,
+        description="sqrt(mean((T_e - mean T_e)^2)) over continuous time: the ripple about "
+        "the window's mean torque (what a speed loop leaves of the torque error)",
+    )  # fmt: skip
+    psi_rmse_cont: float = metric(
+        "psi_RMSE cont", "Wb", fmt=".5f", default=math.nan,
+        description="sqrt(mean((|psi_s| - psi*)^2)) over continuous time",
+    )  # fmt: skip
+    i_thd_cont: float = metric(
+        "THD_i cont", "%", scale=100.0, fmt=".2f", default=math.nan,
+        description="current distortion over whole cycles of the THD window, continuous time, "
+        "all three phases, over the fundamental",
+    )  # fmt: skip
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -177,6 +209,27 @@ METRICS: dict[str, Metric] = {
         "pulses", "%", 100.0, ".2f", "replayed steps whose new command has the recorded pulses"
     ),
 }
+
+
+#: two runs whose switching frequencies differ by more than this share do not compare at
+#: equal switching frequency (docs/reproduction.md#fronts-distortion-against-switching-frequency)
+EQUAL_FSW_SHARE = 0.2
+
+
+def unequal_switching(f_sw_hz: dict[str, float]) -> str | None:
+    """A sentence when runs (label → f_sw, Hz) switch at frequencies more than
+    :data:`EQUAL_FSW_SHARE` apart — their distortion does not compare — else None."""
+    known = {k: v for k, v in f_sw_hz.items() if math.isfinite(v) and v > 0}
+    if len(known) < 2:
+        return None
+    lo, hi = min(known, key=known.__getitem__), max(known, key=known.__getitem__)
+    if known[hi] <= (1.0 + EQUAL_FSW_SHARE) * known[lo]:
+        return None
+    return (
+        f"not comparable at equal switching frequency: f_sw {known[lo] / 1e3:.3g} kHz "
+        f"({lo}) to {known[hi] / 1e3:.3g} kHz ({hi}), {known[hi] / known[lo]:.2g} times; "
+        f"`reproduce fronts` compares strategies at equal f_sw"
+    )
 
 
 def step_window(trace: Trace, t_start: float, t_end: float) -> tuple[int, int]:
@@ -226,15 +279,24 @@ class Spectrum:
         return float(np.sqrt(np.sum(a[2 * self.cycles :: self.cycles] ** 2)) / a[self.cycles])
 
 
-def phase_a_spectrum(
-    trace: Trace, t_start: float, t_end: float, *, slips: bool = False
-) -> Spectrum:
-    """Spectrum of i_a (= i_α, amplitude-invariant Clarke) over the whole electrical cycles that fit
-    in [t_start, t_end): the cycles are counted on the unwrapped angle of the fundamental, so the
-    window holds an integer number of its periods (no leakage at steady speed). That angle is the
-    rotor's electrical angle θ_e for a synchronous machine; an induction motor's currents turn
-    faster or slower than its rotor by the slip (``slips``), so there it is the stator flux's.
-    ConfigError when the window holds no step or no whole cycle of the run."""
+@dataclass(frozen=True)
+class Cycles:
+    """The whole electrical cycles of the fundamental that fit in a window: ``n`` steps from
+    ``k0`` span ``cycles`` turns, in the ``direction`` the fundamental turns (+1 or -1)."""
+
+    k0: int
+    n: int
+    cycles: int
+    direction: int
+
+
+def whole_cycles(trace: Trace, t_start: float, t_end: float, *, slips: bool = False) -> Cycles:
+    """The whole electrical cycles that fit in [t_start, t_end): counted on the unwrapped angle
+    of the fundamental, so the window holds an integer number of its periods (no leakage at
+    steady speed). That angle is the rotor's electrical angle θ_e for a synchronous machine; an
+    induction motor's currents turn faster or slower than its rotor by the slip (``slips``), so
+    there it is the stator flux's. ConfigError (a ValueError) if the window holds no step or
+    not one whole cycle."""
     try:
         k0, k1 = step_window(trace, t_start, t_end)
     except ValueError:
@@ -255,10 +317,58 @@ def phase_a_spectrum(
             f"({turned[-1] / (2 * math.pi):.2f} turns)"
         )
     n = int(np.searchsorted(turned, cycles * 2.0 * math.pi))  # first sample of the next cycle
+    return Cycles(k0, n, cycles, 1 if theta[-1] >= theta[0] else -1)
+
+
+def phase_a_spectrum(
+    trace: Trace, t_start: float, t_end: float, *, slips: bool = False
+) -> Spectrum:
+    """Spectrum of i_a (= i_α, amplitude-invariant Clarke) sampled at the steps of the whole
+    electrical cycles that fit in [t_start, t_end) (:func:`whole_cycles`)."""
+    w = whole_cycles(trace, t_start, t_end, slips=slips)
+    k0, n, cycles = w.k0, w.n, w.cycles
     i_a = trace.truth("i_alpha")[k0 : k0 + n]
     amp = np.abs(np.fft.rfft(i_a)) * (2.0 / n)
     amp[0] /= 2.0
     return Spectrum(k0 * trace.ts, n * trace.ts, cycles, amp)
+
+
+def continuous_rmse(trace: Trace, field: str, ref: str, k0: int, k1: int) -> float:
+    """sqrt of the mean over periods k0..k1-1 of ∫(x - x*)² dt / Ts, from the plant's period
+    means of x and x² (``<field>_avg``, ``<field>_sq_avg``: state k+1 holds period k's) and the
+    reference in force over each period (reference k); NaN for a recording without them
+    (``plant.period_means`` off)."""
+    mean = trace.col("state", f"{field}_avg")[k0 + 1 : k1 + 1]
+    square = trace.col("state", f"{field}_sq_avg")[k0 + 1 : k1 + 1]
+    r = trace.col("reference", ref)[k0:k1]
+    v = float(np.mean(square - 2.0 * r * mean + r * r))
+    return math.sqrt(max(0.0, v)) if v == v else math.nan
+
+
+def continuous_ripple(trace: Trace, field: str, k0: int, k1: int) -> float:
+    """sqrt(mean x² - (mean x)²) over periods k0..k1-1 in continuous time, from the period
+    means of x and x² (NaN without them)."""
+    mean = float(np.mean(trace.col("state", f"{field}_avg")[k0 + 1 : k1 + 1]))
+    square = float(np.mean(trace.col("state", f"{field}_sq_avg")[k0 + 1 : k1 + 1]))
+    v = square - mean * mean
+    return math.sqrt(max(0.0, v)) if v == v else math.nan
+
+
+def continuous_current_thd(trace: Trace, w: Cycles) -> float:
+    """The stator current's distortion over the whole cycles ``w``, continuous in time and all
+    three phases together: sqrt(mean |i_s|² - |I_1|²) / |I_1|, I_1 the fundamental space vector
+    found by a DFT of the period means of i_αβ at the fundamental (each period's mean of
+    e^{jωt} is e^{jω(t + Ts/2)}·sinc(ωTs/2): divided out). Everything but the fundamental counts
+    — every harmonic, the switching ripple at any frequency, a DC offset, a negative sequence —
+    each phase's distortion RMS over the fundamental's RMS."""
+    sl = slice(w.k0 + 1, w.k0 + w.n + 1)  # the periods k0..k0+n-1
+    i = trace.col("state", "i_alpha_avg")[sl] + 1j * trace.col("state", "i_beta_avg")[sl]
+    square = float(np.mean(trace.col("state", "current_sq_avg")[sl]))
+    half = math.pi * w.cycles / w.n  # ωTs/2
+    turn = np.exp(-1j * w.direction * 2.0 * half * np.arange(w.n))
+    fund = abs(complex(np.mean(i * turn))) / (math.sin(half) / half)
+    v = square - fund * fund
+    return math.sqrt(max(0.0, v)) / fund if v == v else math.nan
 
 
 def compute_metrics(
@@ -316,6 +426,9 @@ def compute_metrics(
         compute_ns_median=float(np.median(ns)),
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
         compute_ns_median_by_strategy=by_strategy,
+        t_rmse_cont=continuous_rmse(trace, "torque", "torque_ref", k0, k1),
+        t_ripple_cont=continuous_ripple(trace, "torque", k0, k1),
+        psi_rmse_cont=continuous_rmse(trace, "flux", "flux_ref", k0, k1),
     )
     if not thd_window:
         return m
@@ -326,6 +439,9 @@ def compute_metrics(
         thd_harmonics=sp.thd_harmonics,
         thd_cycles=sp.cycles,
         thd_fundamental_hz=sp.fundamental_hz,
+        i_thd_cont=continuous_current_thd(
+            trace, whole_cycles(trace, thd_window[0], thd_window[1], slips=slips)
+        ),
     )
 
 

@@ -10,6 +10,13 @@ A real drive (docs/physics.md#a-real-drive), each part off by default: the comma
 hold every phase low); dead time and device drops split the period further, at every switching
 edge, into segments whose leg voltages follow the phase currents' signs; and ``sensors`` turn the
 true currents and position into what the controller measures (the truth published beside).
+
+With ``period_means`` the state also carries what happened between the samples: the means of the
+torque, the flux magnitude and the current over the period that ended at k, and of their squares
+(:data:`PERIOD_MEANS`; NaN without it). They are integrated over every sub-step of every segment
+(:meth:`InverterPlant._piece`), so the ripple a carrier hides from samples taken at its period's
+boundaries is counted (docs/physics.md#continuous-time-figures). They change nothing of the
+trajectory: the sub-steps are the ones the integrator takes anyway, bit for bit.
 """
 
 from __future__ import annotations
@@ -27,7 +34,15 @@ from .sensors import Sensors
 from .signals import COMMAND_INDEX, PULSES, PhasePulses, State, new_record
 from .timebase import StepProfile
 
-__all__ = ["PLANTS", "InductionPlant", "InverterPlant", "PMSMPlant", "make_plant", "rk4"]
+__all__ = [
+    "PERIOD_MEANS",
+    "PLANTS",
+    "InductionPlant",
+    "InverterPlant",
+    "PMSMPlant",
+    "make_plant",
+    "rk4",
+]
 
 Dynamics = Callable[[float, Any, Any, Any], Any]
 TWO_PI = 2.0 * math.pi
@@ -36,6 +51,19 @@ ALL_LOW = PhasePulses(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _K = COMMAND_INDEX.k
 _IM_I, _IM_PSI, _IM_W, _IM_TH = IM_STATE.i_s, IM_STATE.psi_s, IM_STATE.omega_m, IM_STATE.theta_m
 _PM_I, _PM_W, _PM_TH = PMSM_STATE.i_dq, PMSM_STATE.omega_m, PMSM_STATE.theta_m
+#: the state's fields that are means over the period that ended at k, in the order
+#: :meth:`InverterPlant._means` gives them
+PERIOD_MEANS = (
+    "torque_avg",
+    "torque_sq_avg",
+    "flux_avg",
+    "flux_sq_avg",
+    "i_alpha_avg",
+    "i_beta_avg",
+    "current_sq_avg",
+)
+#: (T_e, |ψ_s|, i_s in the rotor frame, θ_e unwrapped, e^{jθ_e}) at one instant
+Point = tuple[float, float, complex, float, complex]
 
 
 def rk4(f: Dynamics) -> Callable[..., tuple[Any, ...]]:
@@ -80,6 +108,7 @@ class InverterPlant:
 
     coefficients: Any  #: class with ``of(motor)``: the machine's precomputed constants
     x0: tuple[Any, ...]  #: initial state
+    speed_index: int  #: where ω_m is in the state
     default_integrator: Callable[..., tuple[Any, ...]]
 
     def __init__(
@@ -95,18 +124,26 @@ class InverterPlant:
         dead_time: float = 0.0,
         device_drop: float = 0.0,
         sensors: Sensors | None = None,
+        period_means: bool = False,
+        held_speed: StepProfile | None = None,
     ) -> None:
         self.motor = motor
         self.ts = ts
         self.u_dc = u_dc
         self._coef = self.coefficients.of(motor)
+        x0 = self.x0
+        #: the speed a load machine holds (rad/s), by step; None: a free shaft
+        self._held = None if held_speed is None else held_speed.sampled(ts)
+        if self._held is not None:  # no torque moves the shaft: it turns as it is held
+            self._coef = self._coef._replace(inv_j=0.0, b=0.0)
+            x0 = self._with_speed(x0, self._held.at(0))
         self._load = load.sampled(ts)
         self._max_substep = max_substep
         self._integrate = integrator or type(self).default_integrator
         self._volts = {s: u_dc * clarke(*s) for s in _ALL_STATES}
         self.k = 0
         self.load = self._load.at(0)  #: N·m, load torque during the coming period k
-        self.x: tuple[Any, ...] = self.x0
+        self.x: tuple[Any, ...] = x0
         self.switches = (0, 0, 0)
         self._transitions = 0
         #: the commands issued but not yet acting, oldest first (actuation delay)
@@ -118,6 +155,96 @@ class InverterPlant:
         self._real_inverter = dead_time > 0.0 or device_drop > 0.0
         self._carry = [0.0, 0.0, 0.0]  #: dead time of each leg running on into this period
         self.sensors = sensors
+        #: the period means the state publishes (:data:`PERIOD_MEANS`): NaN unless
+        #: ``period_means``; at k = 0, the values at 0 (the limit of an empty period)
+        self._avg: tuple[float, ...] = (math.nan,) * len(PERIOD_MEANS)
+        self._sums = [0.0, 0.0, 0.0, 0.0, 0.0]  #: ∫T, ∫T², ∫|ψ|, ∫|ψ|², ∫|i|² (× 2, 3, 2, 3, 3)
+        self._sum_i = 0j  #: ∫i_αβ dt
+        self._means = period_means
+        if period_means:
+            self._at = self._point(self.x)  #: the :data:`Point` where the next piece starts
+            te, psi, i_r, _, rot = self._at
+            i = i_r * rot
+            self._avg = (te, te * te, psi, psi * psi, i.real, i.imag, abs(i) ** 2)
+
+    def _point(self, x: tuple[Any, ...]) -> Point:
+        """The :data:`Point` of state ``x``: what the period means are taken of."""
+        raise NotImplementedError
+
+    def _with_speed(self, x: tuple[Any, ...], omega_m: float) -> tuple[Any, ...]:
+        w = self.speed_index
+        return (*x[:w], omega_m, *x[w + 1 :])
+
+    def _next_period(self) -> None:
+        """Step k done: on to k + 1, its load (and the speed a load machine holds)."""
+        self.k += 1
+        self.load = self._load.at(self.k)
+        if self._held is not None:
+            self.x = self._with_speed(self.x, self._held.at(self.k))
+
+    def _piece(self, x: tuple[Any, ...], u: Any, h: float) -> tuple[Any, ...]:
+        """``x`` after ``h`` s under ``u`` (constant), in sub-steps of at most ``max_substep``,
+        each added to the period's sums.
+
+        Between a sub-step's ends each signal is taken as linear in time — the current in the
+        rotor frame, where the fundamental stands still (a synchronous machine's; an induction
+        motor's turns there at the slip frequency only) and the switching ripple is a ramp: ∫x
+        by the trapezoid, ∫x² = h(a² + ab + b²)/3, and ∫i_αβ = ∫(i_0 + (i_1 - i_0)s)·e^{j(θ_0 +
+        φs)} h ds = h·e^{jθ_0}·(i_0·E_0(φ) + (i_1 - i_0)·E_1(φ)) in closed form, φ the angle the
+        rotor turns (E_0 = (e^{jφ} - 1)/(jφ), E_1 = ∫s·e^{jφs} ds, by their series)."""
+        n = 1 if h <= self._max_substep else math.ceil(h / self._max_substep - 1e-9)
+        dt = h / n  # what the integrator's own loop would take: the same floats
+        integrate, coef, point, sums = self._integrate, self._coef, self._point, self._sums
+        te0, f0, i0, th0, rot0 = self._at
+        sum_i = self._sum_i
+        for _ in range(n):
+            x = integrate(0.0, x, u, coef, dt, 1)
+            te1, f1, i1, th1, rot1 = point(x)
+            sums[0] += dt * (te0 + te1)
+            sums[1] += dt * (te0 * te0 + te0 * te1 + te1 * te1)
+            sums[2] += dt * (f0 + f1)
+            sums[3] += dt * (f0 * f0 + f0 * f1 + f1 * f1)
+            phi = th1 - th0
+            q = phi * phi
+            if q < 0.01:  # |φ| < 0.1 rad: the series to φ⁴, within 2e-8
+                e0 = complex(1.0 - q / 6.0 + q * q / 120.0, phi * (0.5 - q / 24.0))
+                e1 = complex(0.5 - q / 8.0 + q * q / 144.0, phi * (1.0 / 3.0 - q / 30.0))
+            else:
+                e = complex(math.cos(phi), math.sin(phi))
+                e0 = (e - 1.0) / complex(0.0, phi)
+                e1 = e / complex(0.0, phi) + (e - 1.0) / q
+            sum_i += dt * rot0 * (i0 * e0 + (i1 - i0) * e1)
+            sums[4] += dt * (
+                i0.real * (i0.real + i1.real) + i0.imag * (i0.imag + i1.imag)
+                + i1.real * i1.real + i1.imag * i1.imag
+            )  # fmt: skip
+            te0, f0, i0, th0, rot0 = te1, f1, i1, th1, rot1
+        self._at = (te0, f0, i0, th0, rot0)
+        self._sum_i = sum_i
+        return x
+
+    def _advance(self, x: tuple[Any, ...], u: Any, h: float) -> tuple[Any, ...]:
+        """``x`` after ``h`` s under ``u`` (constant): :meth:`_piece` when the period means are
+        taken, else the integrator in sub-steps of at most ``max_substep``, in one call."""
+        if self._means:
+            return self._piece(x, u, h)
+        n = 1 if h <= self._max_substep else math.ceil(h / self._max_substep - 1e-9)
+        return self._integrate(0.0, x, u, self._coef, h, n)
+
+    def _open_period(self) -> None:
+        """Start the period's sums at the present state (which a test may have set by hand)."""
+        self._at = self._point(self.x)
+
+    def _close_period(self) -> None:
+        """The sums of the period just integrated → its means (:data:`PERIOD_MEANS`)."""
+        s = self._sums
+        half, third = 0.5 / self.ts, 1.0 / (3.0 * self.ts)
+        i = self._sum_i / self.ts
+        self._avg = (
+            s[0] * half, s[1] * third, s[2] * half, s[3] * third, i.real, i.imag, s[4] * third
+        )  # fmt: skip
+        self._sums = [0.0, 0.0, 0.0, 0.0, 0.0]
+        self._sum_i = 0j
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
         """The stator current in αβ of state ``x``."""
@@ -154,6 +281,7 @@ class InverterPlant:
                 ib,
                 w,
                 the,
+                *self._avg,
             ),
         )
 
@@ -171,23 +299,22 @@ class InverterPlant:
             return self._step_real(pulses)
         segs, self.switches, self._transitions = segments(pulses, self.switches)
         ts = self.ts
-        t = self.k * ts
         load = self.load  # constant over the period
         x = self.x
-        volts, coef, integrate, max_sub = (
-            self._volts,
-            self._coef,
-            self._integrate,
-            self._max_substep,
-        )
-        for sw, frac in segs:
-            h = frac * ts
-            n = 1 if h <= max_sub else math.ceil(h / max_sub - 1e-9)
-            x = integrate(t, x, (volts[sw], load), coef, h, n)
-            t += h
+        volts = self._volts
+        if self._means:
+            self._open_period()
+            for sw, frac in segs:
+                x = self._piece(x, (volts[sw], load), frac * ts)
+            self._close_period()
+        else:
+            coef, integrate, max_sub = self._coef, self._integrate, self._max_substep
+            for sw, frac in segs:
+                h = frac * ts
+                n = 1 if h <= max_sub else math.ceil(h / max_sub - 1e-9)
+                x = integrate(0.0, x, (volts[sw], load), coef, h, n)
         self.x = x
-        self.k += 1
-        self.load = self._load.at(self.k)
+        self._next_period()
         return self.state()
 
     def _step_real(self, pulses: Sequence[float]) -> State:
@@ -218,11 +345,11 @@ class InverterPlant:
             windows.append(spans)
             cuts.update(edges)
             cuts.update(b for _, b in spans if b < 1.0)
+        if self._means:
+            self._open_period()
         ts, u_dc, drop = self.ts, self.u_dc, self._drop
-        t = self.k * ts
         load = self.load
         x = self.x
-        coef, integrate, max_sub = self._coef, self._integrate, self._max_substep
         points = sorted(cuts)
         for t0, t1 in zip(points, points[1:]):
             mid = 0.5 * (t0 + t1)
@@ -236,13 +363,11 @@ class InverterPlant:
                     high = rises[leg] <= mid < falls[leg]
                 sign = (cur > 0.0) - (cur < 0.0)
                 legs.append(u_dc * high - sign * drop)
-            h = (t1 - t0) * ts
-            n = 1 if h <= max_sub else math.ceil(h / max_sub - 1e-9)
-            x = integrate(t, x, (clarke(*legs), load), coef, h, n)
-            t += h
+            x = self._advance(x, (clarke(*legs), load), (t1 - t0) * ts)
         self.x = x
-        self.k += 1
-        self.load = self._load.at(self.k)
+        if self._means:
+            self._close_period()
+        self._next_period()
         return self.state()
 
 
@@ -253,11 +378,20 @@ class InductionPlant(InverterPlant):
     motor: InductionMotor
     coefficients = InductionCoefficients
     x0 = (0j, 0j, 0.0, 0.0)
+    speed_index = _IM_W
     default_integrator = staticmethod(induction_exact)
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
         i: complex = x[_IM_I]
         return i
+
+    def _point(self, x: tuple[Any, ...]) -> Point:
+        i, psi = x[_IM_I], x[_IM_PSI]
+        c = self._coef
+        te = c.torque_k * (psi.real * i.imag - psi.imag * i.real)
+        the = c.p * x[_IM_TH]
+        rot = complex(math.cos(the), math.sin(the))
+        return te, abs(psi), i * rot.conjugate(), the, rot
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
         x = self.x
@@ -274,12 +408,21 @@ class PMSMPlant(InverterPlant):
     motor: PMSM
     coefficients = PMSMCoefficients
     x0 = (0j, 0.0, 0.0)
+    speed_index = _PM_W
     default_integrator = staticmethod(pmsm_rk4)
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
         the = self._coef.p * x[_PM_TH]
         i: complex = x[_PM_I] * complex(math.cos(the), math.sin(the))
         return i
+
+    def _point(self, x: tuple[Any, ...]) -> Point:
+        i_dq, the = x[_PM_I], self._coef.p * x[_PM_TH]
+        i_d, i_q = i_dq.real, i_dq.imag
+        _, _, _, l_d, l_q, psi_f, _, tk, _, _ = self._coef
+        te = tk * i_q * (psi_f + (l_d - l_q) * i_d)
+        psi = math.hypot(l_d * i_d + psi_f, l_q * i_q)
+        return te, psi, i_dq, the, complex(math.cos(the), math.sin(the))
 
     def _outputs(self) -> tuple[complex, float, float, float, complex, float]:
         x = self.x

@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 from ..errors import ConfigError
 from .control import Controller, make_controller, strategy_names
+from .control.base import parse_switch
 from .control.speed_pi import SpeedPI
 from .plant import InverterPlant, make_plant
 from .scenario import PlantParams, Scenario
@@ -72,6 +73,8 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
         dead_time=p.dead_time,
         device_drop=p.device_drop,
         sensors=sensors,
+        period_means=p.period_means,
+        held_speed=p.held_speed() if p.held else None,
     )
 
 
@@ -103,7 +106,8 @@ def run_inprocess(
 ) -> Trace:
     """Run ``steps`` control periods (default: the scenario's duration) and return the trace.
 
-    ``switches``: (step, strategy) pairs; the strategy changes at that step boundary.
+    ``switches``: (step, switch) pairs — a strategy's name or ``horizon=N``
+    (:func:`~.control.base.parse_switch`); it takes effect at that step boundary.
     """
     n = scenario.run.steps if steps is None else steps
     c = build(scenario)
@@ -133,7 +137,7 @@ def run_inprocess(
         for k in range(n):
             if k >= next_switch:
                 while pending and pending[0][0] <= k:
-                    ctrl.set_strategy(pending.pop(0)[1])
+                    ctrl.switch(*parse_switch(pending.pop(0)[1]))
                 next_switch = pending[0][0] if pending else n
             cmd = ctrl.step(state, ref)
             s_add(s_pack(*state))

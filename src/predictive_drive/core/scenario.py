@@ -10,7 +10,7 @@ from typing import Any
 from ..errors import ConfigError
 from .control import EXTERNAL, controller_class
 from .control.speed_pi import SpeedPIParams
-from .fields import check_fields, choice, quantity
+from .fields import check_fields, choice, flag, quantity
 from .machines import Machine
 from .signals import EXTERNAL_PREFIX, external_name
 from .timebase import StepProfile, step_index
@@ -51,9 +51,11 @@ class RunParams:
 
 @dataclass(frozen=True)
 class PlantParams:
-    """Plant: machine, inverter, load steps, integrator sub-step; and what makes it a real drive
+    """Plant: machine, inverter, load steps, integrator sub-step; what makes it a real drive
     (docs/physics.md#a-real-drive), every one ideal by default: the computation delay, the
-    inverter's dead time and device drops, the current and position sensors."""
+    inverter's dead time and device drops, the current and position sensors; whether a load
+    machine holds its speed (docs/physics.md#mechanics-and-load); and whether it publishes the
+    period means (docs/physics.md#continuous-time-figures)."""
 
     motor: Any  #: the machine type's motor parameters (:data:`~.machines.MOTORS`)
     u_dc: float = quantity("DC-link voltage", "V", gt=0)
@@ -91,6 +93,18 @@ class PlantParams:
     sensor_seed: int = quantity(
         "seed of the sensors' noise (same seed, same recording)", ge=0, integer=True, default=0
     )
+    held_speed_times: tuple[float, ...] = quantity(
+        "times of the held speed's steps: with them a load machine holds the shaft at "
+        "held_speed_rpm (a test bench's dynamometer) and the load profile must be 0", "s",
+        ge=0, default=(),
+    )  # fmt: skip
+    held_speed_rpm: tuple[float, ...] = quantity(
+        "the speed the load machine holds from each of held_speed_times on", "r/min", default=()
+    )
+    period_means: bool = flag(
+        "integrate torque, flux and current between the samples: the state's *_avg fields and "
+        "the continuous-time figures (off: NaN; costs a third of a run's time)"
+    )
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -100,6 +114,14 @@ class PlantParams:
                 f"plant.current_adc_bits: {self.current_adc_bits} bits need "
                 f"plant.current_range (A, the ADC's full scale) > 0"
             )
+        if self.held_speed_times or self.held_speed_rpm:
+            self.held_speed()  # validates
+            if any(self.load_values):
+                raise ConfigError(
+                    f"plant.load_values: {list(self.load_values)} with a held speed "
+                    f"(plant.held_speed_times): the load machine holding the shaft takes "
+                    f"whatever torque the motor makes; give load_values: [0.0]"
+                )
         if not math.isnan(self.current_range) and not self.current_adc_bits:
             raise ConfigError(
                 "plant.current_range: given without plant.current_adc_bits (1..24): "
@@ -118,6 +140,18 @@ class PlantParams:
                 f"plant.speed_window: {self.speed_window:g} s is shorter than the control period "
                 f"(ts = {ts:g} s); the encoder's speed needs at least one period"
             )
+
+    @property
+    def held(self) -> bool:
+        """A load machine holds the shaft's speed (``held_speed_times``)."""
+        return bool(self.held_speed_times)
+
+    def held_speed(self) -> StepProfile:
+        """The speed the load machine holds, rad/s."""
+        rpm = 2.0 * math.pi / 60.0
+        return StepProfile(
+            tuple(self.held_speed_times), tuple(v * rpm for v in self.held_speed_rpm)
+        )
 
     @property
     def sensed(self) -> bool:
@@ -208,6 +242,16 @@ class Scenario:
     @property
     def machine(self) -> Machine:
         return Machine(self.run.machine)
+
+    @property
+    def speed_pi_params(self) -> SpeedPIParams:
+        """The speed PI's settings; ConfigError where the speed loop is the user's own and its
+        section is not the built-in's."""
+        if self.speed_pi is None:
+            raise ConfigError(
+                f"{self.source}: speed_pi is a node of the user's own here: its section is its own"
+            )
+        return self.speed_pi
 
     @property
     def torque_limit(self) -> float:

@@ -17,6 +17,9 @@ from typing import Any, NamedTuple
 from ..errors import ConfigError
 
 __all__ = [
+    "span_key",
+    "span_name",
+    "span_parts",
     "strategy_name",
     "COMMAND_DIAGNOSTICS",
     "COMMAND_INDEX",
@@ -59,6 +62,15 @@ class State(NamedTuple):
     i_beta_true: float  #: stator current β, A (truth)
     omega_m_true: float  #: mechanical speed, rad/s (truth)
     theta_e_true: float  #: rotor electrical angle, rad, [0, 2π) (truth)
+    # means over the period that ended at k, between the samples (truth; at k = 0 the values at
+    # 0): what the continuous-time figures are computed from (docs/physics.md#metrics)
+    torque_avg: float  #: mean electromagnetic torque, N·m
+    torque_sq_avg: float  #: mean of its square, (N·m)²
+    flux_avg: float  #: mean stator-flux magnitude |ψ_s|, Wb
+    flux_sq_avg: float  #: mean of its square, Wb²
+    i_alpha_avg: float  #: mean stator current α, A
+    i_beta_avg: float  #: mean stator current β, A
+    current_sq_avg: float  #: mean of |i_s|² = i_α² + i_β², A²
 
 
 class Reference(NamedTuple):
@@ -111,6 +123,39 @@ def strategy_name(names: tuple[str, ...], index: float, external: str = EXTERNAL
     return names[int(index)] if 0 <= index < len(names) else "?"
 
 
+#: span keys: a strategy index and its horizon in one number (horizons are below this)
+_SPAN_BASE = 64.0
+
+
+def span_key(strategy: Any, horizon: Any) -> Any:
+    """What a strategy span is one of, as one number (or an array of them, from columns): the
+    strategy index and the law's horizon (NaN: none, counted as 1). A span of ``mptc`` at N = 3
+    is another span than ``mptc`` at N = 1; NaN for a controller of the user's own."""
+    if isinstance(horizon, float):
+        return strategy * _SPAN_BASE + (1.0 if math.isnan(horizon) else horizon)
+    import numpy as np
+
+    return strategy * _SPAN_BASE + np.where(np.isnan(horizon), 1.0, horizon)
+
+
+def span_parts(key: float) -> tuple[float, float]:
+    """(strategy index, horizon) of a :func:`span_key` (NaN, NaN for the user's own)."""
+    if math.isnan(key):
+        return math.nan, math.nan
+    index, horizon = divmod(key, _SPAN_BASE)
+    return index, horizon
+
+
+def span_name(names: tuple[str, ...], key: float, external: str = EXTERNAL) -> str:
+    """The strategy (with its horizon when longer than one period) of a :func:`span_key`; a
+    controller of the user's own (NaN) is named ``external``."""
+    if math.isnan(key):
+        return external
+    index, horizon = span_parts(key)
+    name = strategy_name(names, index)
+    return name if horizon == 1.0 else f"{name} N={int(horizon)}"
+
+
 class Command(NamedTuple):
     """Controller output for period k: per-phase pulses plus the decision's diagnostics."""
 
@@ -126,7 +171,8 @@ class Command(NamedTuple):
     vector: float  #: chosen voltage vector 0..6 (0 = zero vector, 000 or 111); NaN: not FCS
     duty: float  #: fraction of Ts the chosen vector is applied (1 for plain FCS); NaN: not FCS
     t_u: float  #: raw deadbeat time before clamping, s (NaN where no deadbeat time is computed)
-    cal: float  #: number of vector predictions evaluated this step
+    cal: float  #: number of vector predictions evaluated this step (tree nodes, long horizons)
+    horizon: float  #: prediction horizon N of the law, periods (NaN: a law without one)
     torque_est: float  #: controller's torque estimate at k, N·m
     flux_est: float  #: controller's stator-flux magnitude estimate at k, Wb
     flux_angle: float  #: angle of the controller's stator-flux estimate in αβ at k, rad, [0, 2π)

@@ -21,9 +21,17 @@ from ..core.machines import Machine
 from ..core.metrics import METRICS, phase_a_spectrum
 from ..core.scenario import Scenario
 from ..core.trace import Trace
-from ..errors import ConfigError
+from ..dependencies import missing
 
-__all__ = ["Run", "compare_figures", "realism_figures", "run_figures", "save", "sweep_figures"]
+__all__ = [
+    "Run",
+    "compare_figures",
+    "fronts_figures",
+    "realism_figures",
+    "run_figures",
+    "save",
+    "sweep_figures",
+]
 
 RPM = 60.0 / (2.0 * math.pi)
 
@@ -41,10 +49,7 @@ def _pyplot() -> Any:
     try:
         import matplotlib
     except ImportError:
-        raise ConfigError(
-            "--figures needs matplotlib: pip install 'predictive_drive[figures]' (`make setup` "
-            "installs it)"
-        ) from None
+        raise missing("matplotlib", "--figures") from None
 
     matplotlib.use("Agg")  # files only: no display here, nor wanted
     import matplotlib.pyplot as plt
@@ -291,6 +296,52 @@ def realism_figures(
         axes[0].legend(fontsize=7)
         fig.tight_layout()
         figs[scenario] = fig
+    return figs
+
+
+#: the figures a front is drawn of (metric keys), against f_sw
+FRONT_METRICS = ("t_ripple_cont", "i_thd_cont")
+
+
+def fronts_figures(result: Any) -> dict[str, Any]:
+    """One figure per operating point of a fronts study (``result.points``, each with
+    ``point``, ``caption`` and ``curves`` of ``points``): a panel per figure of
+    :data:`FRONT_METRICS` against f_sw, log axes; per curve its points (hollow where the run
+    left the operating point) and its front as a line (dashed for field-oriented control)."""
+    plt = _pyplot()
+    figs: dict[str, Any] = {}
+    f_sw = METRICS["f_sw_hz"]
+    for table in result.points:
+        fig, axes = plt.subplots(1, len(FRONT_METRICS), figsize=(11, 4.2))
+        for ax, key in zip(np.atleast_1d(axes), FRONT_METRICS):
+            shown = METRICS[key]
+            for curve in table.curves:
+                held = [p for p in curve.points if p.holds]
+                lost = [p for p in curve.points if not p.holds]
+                xs = [f_sw.scale * p.figures["f_sw_hz"] for p in held]
+                ys = [shown.scale * p.figures[key] for p in held]
+                (line,) = ax.plot(xs, ys, "o", markersize=4, label=curve.name)
+                front = curve.front(key)
+                ax.plot(
+                    [f_sw.scale * f for f, _ in front],
+                    [shown.scale * v for _, v in front],
+                    "--" if curve.strategy.startswith(("foc", "ifoc")) else "-",
+                    color=line.get_color(),
+                )
+                if lost:
+                    ax.plot(
+                        [f_sw.scale * max(p.figures["f_sw_hz"], 1.0) for p in lost],
+                        [shown.scale * p.figures[key] for p in lost],
+                        "o", mfc="none", color=line.get_color(), markersize=4,
+                    )  # fmt: skip
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set(xlabel=f_sw.axis, ylabel=shown.axis)
+            ax.grid(True, which="both", alpha=0.3)
+        np.atleast_1d(axes)[0].legend(fontsize=7)
+        fig.suptitle(table.caption, fontsize=9)
+        fig.tight_layout()
+        figs[table.point] = fig
     return figs
 
 

@@ -34,8 +34,9 @@ PLOTS: dict[str, list[tuple[str, str]]] = {
         ("command", "i_d_ref"),
         ("command", "i_q_ref"),
     ],
-    "strategy (index), vector, current angle (rad)": [
+    "strategy (index), horizon, vector, current angle (rad)": [
         ("command", "strategy"),
+        ("command", "horizon"),
         ("command", "vector"),
         ("command", "current_angle"),
     ],
@@ -107,14 +108,22 @@ def foxglove_layout() -> dict[str, Any]:
     }
 
 
-def write_layout(path: str | Path) -> Path:
-    """Write the layout as JSON (the format Foxglove imports); ConfigError names the path and
-    why it cannot be written."""
+def write_layout(path: str | Path, *, replace: bool = False) -> Path:
+    """Write the layout as JSON (the format Foxglove imports), whole or not at all (a temporary
+    file renamed); a file already there is replaced only with ``replace``. ConfigError names the
+    path and why it is not written."""
     p = Path(path)
+    if p.exists() and not replace:
+        raise ConfigError(f"layout --out {p}: the file exists; --force replaces it")
+    if p.is_dir():
+        raise ConfigError(f"layout --out {p}: a directory, not a file")
     text = json.dumps(foxglove_layout(), indent=2, ensure_ascii=False) + "\n"
+    tmp = p.with_name(p.name + ".tmp")
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(text)
+        tmp.write_text(text)
+        tmp.replace(p)
     except OSError as e:
+        tmp.unlink(missing_ok=True)
         raise ConfigError(f"layout --out {p}: cannot write it: {e.strerror}") from None
     return p

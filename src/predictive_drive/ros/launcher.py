@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ..bag import LOGS_DIR, check_new_bag
+from ..core.control.base import parse_switch
 from ..core.scenario import Scenario
 from ..core.timebase import step_index
 from ..errors import GraphError, Interrupted
@@ -475,7 +476,8 @@ class _ClockWatcher:
     def _request(self, what: str, name: str) -> None:
         from rclpy.parameter import Parameter
 
-        fut = self.client.set_parameters([Parameter("strategy", Parameter.Type.STRING, name)])
+        key, value = parse_switch(name)  # a strategy, or horizon=N
+        fut = self.client.set_parameters([Parameter(key, value=value)])
         self._inflight = (what, name, fut, time.monotonic())
 
     def _send(self) -> None:

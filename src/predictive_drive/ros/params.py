@@ -48,10 +48,7 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
     with ros_session(PARAM_NODE, domain=domain) as (me, ex):
         client = AsyncParameterClient(me, node)
         if not client.wait_for_services(timeout_sec=timeout):
-            raise GraphError(
-                f"node {node} offers no parameter services (is it running, "
-                f"and is ROS_DOMAIN_ID={domain} its domain?)"
-            )
+            raise GraphError(f"node {node} offers no parameter services; {_where_runs_are(domain)}")
         deadline = time.monotonic() + timeout
         while True:
             if value is None:
@@ -80,6 +77,22 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
                 )
             raise GraphError(f"{node}: setting {name} to {value!r} was rejected: {r.reason}")
         return _value(value)
+
+
+def _where_runs_are(domain: int) -> str:
+    """Which domains the runs going on here hold: a graph answers on its own domain only."""
+    from .processes import domains_in_use
+
+    held = domains_in_use()
+    runs = (
+        f"runs in progress here hold ROS_DOMAIN_ID {', '.join(map(str, held))}"
+        if held
+        else "no predictive-drive run is in progress here"
+    )
+    return (
+        f"this looked on ROS_DOMAIN_ID={domain}, and {runs} (`run` prints its graph's as "
+        "'graph on ROS_DOMAIN_ID=N': give it as ROS_DOMAIN_ID=N predictive-drive param ...)"
+    )
 
 
 def _names(client: AsyncParameterClient, ex: Any) -> list[str] | None:

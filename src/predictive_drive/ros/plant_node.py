@@ -21,6 +21,7 @@ from rclpy.duration import Duration
 
 from ..codec import CODECS, command_for_step
 from ..core.commands import CommandError
+from ..core.control.base import SWITCHABLE
 from ..core.runner import build_plant
 from ..core.signals import State
 from ..interface import LAUNCHER_NODE, NAMESPACE, RECORDING_WINDOW, TOPICS, node_name
@@ -72,7 +73,7 @@ class PlantNode(WatchedNode):
             "the plant waits at each until /drive/torque_controller has taken it"
         )
         self.switches_taken = 0
-        self._strategy_seen = ""  #: the last strategy the controller announced
+        self._seen: dict[str, Any] = {}  #: the last strategy (horizon) the controller announced
         if self.switch_steps:
             from rcl_interfaces.msg import ParameterEvent
 
@@ -192,8 +193,9 @@ class PlantNode(WatchedNode):
             return
         for p in event.changed_parameters:
             # a request sent twice sets the same value twice: one switch
-            if p.name == "strategy" and p.value.string_value != self._strategy_seen:
-                self._strategy_seen = p.value.string_value
+            value = p.value.string_value if p.name == "strategy" else p.value.integer_value
+            if p.name in SWITCHABLE and value != self._seen.get(p.name):
+                self._seen[p.name] = value
                 self.switches_taken += 1
         self._release()
 

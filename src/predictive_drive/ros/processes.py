@@ -35,6 +35,7 @@ __all__ = [
     "STOP_GRACE",
     "TERM_GRACE",
     "SharedMemory",
+    "domains_in_use",
     "ending_with_this_process",
     "is_stopped",
     "isolated_domain",
@@ -82,6 +83,24 @@ def isolated_domain() -> Iterator[int]:
             os.close(fd)
         return
     raise GraphError("no free ROS domain id: 100 predictive_drive runs at once?")
+
+
+def domains_in_use() -> list[int]:
+    """The ROS domain ids predictive_drive runs on this machine hold now (their lock files are
+    locked), for a message that tells a user which domain a running graph is on."""
+    held = []
+    for d in DOMAIN_RANGE:
+        try:
+            fd = os.open(LOCK_DIR / f"{d}.lock", os.O_RDONLY)
+        except OSError:
+            continue  # no run ever took it, or another user's we cannot read
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:
+            held.append(d)
+        finally:
+            os.close(fd)  # a lock taken here goes with its descriptor
+    return held
 
 
 #: s a child may take to close once asked (messages in flight, the bag), before SIGTERM

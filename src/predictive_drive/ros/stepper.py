@@ -28,7 +28,7 @@ import numpy as np
 from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, command_for_step, stamp_ns
 from ..core.commands import CommandError
-from ..core.control import strategy_names
+from ..core.control import controller_class, strategy_names
 from ..core.signals import (
     COMMAND_INDEX,
     EXTERNAL,
@@ -114,6 +114,9 @@ def replay_into(
         raise GraphError(f"--strategy {strategy!r}: valid for {sc.family}: {', '.join(names)}")
     recorded = [strategy_name(names, i, trace.external) for i in trace.col("command", "strategy")]
     plan = [strategy] * n if strategy is not None else recorded
+    # the law's horizon as recorded (NaN: a law without one, or an older recording: 1)
+    horizons = [1 if h != h else int(h) for h in trace.col("command", "horizon")]
+    takes_horizon = bool(controller_class(sc.family).horizon_strategies)
     if command is not None:  # the user's node: no strategy to set or switch
         plan = [external_name(label) if label is not None else EXTERNAL] * n
     elif strategy is None and recorded and recorded[0].startswith(EXTERNAL_PREFIX):
@@ -127,7 +130,9 @@ def replay_into(
     logs.mkdir(parents=True, exist_ok=True)
     scenario_file = logs / "scenario.yaml"
     scenario_file.write_text(sc.text)
-    ours = {"strategy": plan[0]} if command is None else {}
+    ours: dict[str, Any] = {"strategy": plan[0]} if command is None else {}
+    if command is None and takes_horizon:
+        ours["horizon"] = horizons[0] if n else 1
     overrides = {
         node_name("torque_controller"): {
             "duration": n * sc.ts,
@@ -172,24 +177,24 @@ def replay_into(
         try:
             _wait(ex, _matched(sub, pub_state, pub_ref), 60.0, proc, logs)
             shm.sample([proc.pid])
-            if command is None and strategy is None and len(set(plan)) > 1:
-                _wait(
-                    ex,
-                    _until(client.services_are_ready, "its parameter services"),
-                    60.0,
-                    proc,
-                    logs,
-                )
+            own_law = takes_horizon and command is None
+            steps = list(zip(plan, horizons if own_law else [1] * n))
+            if command is None and len(set(steps)) > 1:
+                services = _until(client.services_are_ready, "its parameter services")
+                _wait(ex, services, 60.0, proc, logs)
             state, ref = CODECS["state"], CODECS["reference"]
-            in_force = plan[0]
+            in_force = steps[0] if n else ("", 1)
             t0 = time.perf_counter()
             for k in range(n + 1):
-                if k < n and plan[k] != in_force:  # the recorded switch, before command k
-                    in_force = plan[k]
-                    fut = client.set_parameters(
-                        [Parameter("strategy", Parameter.Type.STRING, in_force)]
-                    )
-                    answer = _until(fut.done, f"an answer to the strategy switch at step {k}")
+                if k < n and steps[k] != in_force:  # the recorded switch, before command k
+                    changed = [
+                        Parameter(key, value=value)
+                        for key, value, before in zip(("strategy", "horizon"), steps[k], in_force)
+                        if value != before
+                    ]
+                    in_force = steps[k]
+                    fut = client.set_parameters(changed)
+                    answer = _until(fut.done, f"an answer to the switch at step {k}")
                     _wait(ex, answer, COMMAND_TIMEOUT, proc, logs)
                 row, reference = tuple(trace.state[k]), tuple(trace.reference[k])
                 pub_ref.publish(ref.encode(reference))

@@ -14,7 +14,8 @@ from rclpy.parameter import Parameter
 
 from ..codec import CODECS
 from ..config import FAMILY_KEY, family_of, section_class
-from ..core.control import CONTROLLERS, make_controller, strategy_names
+from ..core.control import CONTROLLERS, make_controller
+from ..core.control.base import SWITCHABLE
 from ..core.fields import Quantity, check_fields, quantity
 from ..core.scenario import RunParams
 from ..core.signals import Reference, State
@@ -48,7 +49,7 @@ class TorqueControllerNode(WatchedNode):
     post-set callback, so it takes effect at the next step boundary."""
 
     section = "torque_controller"
-    writable = ("strategy",)
+    writable = SWITCHABLE
 
     def __init__(self, **kw: Any) -> None:
         super().__init__("torque_controller", **kw)
@@ -68,7 +69,7 @@ class TorqueControllerNode(WatchedNode):
         self.schedule = self.declare_switch_steps(
             "a strategy request is applied at the next of them"
         )
-        self._deferred: list[tuple[int, str]] = []
+        self._deferred: list[tuple[int, str, Any]] = []  #: (step, key, value)
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.add_post_set_parameters_callback(self.on_parameters_set)
 
@@ -80,15 +81,14 @@ class TorqueControllerNode(WatchedNode):
         return section_class(self.section, run.machine, self.family)
 
     def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate only: every requested strategy must be one of the family's."""
-        names = strategy_names(self.family)
+        """Validate only: every requested strategy (or horizon) must be one the controller can
+        run (:meth:`~..core.control.base.Controller.switch_refusal`)."""
         for p in params:
-            if p.name == "strategy" and p.value not in names:
+            if p.name in SWITCHABLE and (reason := self.ctrl.switch_refusal(p.name, p.value)):
+                running = getattr(self.ctrl, "horizon" if p.name == "horizon" else "strategy")
+                now = running if p.name == "horizon" else running.name
                 return SetParametersResult(
-                    successful=False,
-                    reason=f"unknown strategy {p.value!r} for controller family "
-                    f"{self.family!r}; valid: {', '.join(names)} (running strategy stays "
-                    f"{self.ctrl.strategy.name})",
+                    successful=False, reason=f"{reason} (running {p.name} stays {now})"
                 )
         return SetParametersResult(successful=True)
 
@@ -96,21 +96,28 @@ class TorqueControllerNode(WatchedNode):
         """Apply an accepted switch: the next command is made by the new strategy (or, with a
         schedule, the command of the next scheduled step)."""
         for p in params:
-            if p.name != "strategy":
+            if p.name not in SWITCHABLE:
                 continue
-            last = self._deferred[-1][1] if self._deferred else self.ctrl.strategy.name
-            if p.value == last:
+            if p.value == self._last(p.name):
                 continue  # a request sent twice (see the launcher's resend): taken already
             if self.schedule:
-                self._deferred.append((self.schedule.pop(0), p.value))
+                self._deferred.append((self.schedule.pop(0), p.name, p.value))
             else:
-                self._switch(p.value)
+                self._switch(p.name, p.value)
 
-    def _switch(self, name: str) -> None:
-        # the same name again (a request sent twice) changes nothing: no new law instance
-        if name != self.ctrl.strategy.name:
-            self.ctrl.set_strategy(name)
-            self.get_logger().info(f"strategy → {name} from step {self._k}")
+    def _last(self, key: str) -> Any:
+        """The value ``key`` has or will have once the deferred switches are taken."""
+        for _, k, value in reversed(self._deferred):
+            if k == key:
+                return value
+        return self.ctrl.strategy.name if key == "strategy" else self.ctrl.horizon
+
+    def _switch(self, key: str, value: Any) -> None:
+        # the same value again (a request sent twice) changes nothing: no new law instance
+        now = self.ctrl.strategy.name if key == "strategy" else self.ctrl.horizon
+        if value != now:
+            self.ctrl.switch(key, value)
+            self.get_logger().info(f"{key} → {value} from step {self._k}")
 
     @property
     def last_step(self) -> int:
@@ -146,7 +153,7 @@ class TorqueControllerNode(WatchedNode):
                 self.finished = True
                 return
             while self._deferred and self._deferred[0][0] <= k:
-                self._switch(self._deferred.pop(0)[1])
+                self._switch(*self._deferred.pop(0)[1:])
             if k == 0:
                 self.wait_matched(self.pub_cmd, self.links.command_readers, "its readers")
             self.pub_cmd.publish(_CMD.encode(self.ctrl.step(state, ref)))

@@ -11,6 +11,10 @@ family        machine     strategies
 mptc_im       induction   mptc, mptc_db, db_mptc (paper 000)
 mptc_pmsm     pmsm        mptc, simplified1, simplified2, simplified3 (paper 001)
 foc_pmsm      pmsm        foc_zero_d, foc_formula, foc_injection (paper 002: FOC with MTPA)
+foc_im        induction   ifoc (indirect rotor-field orientation: the PWM baseline of paper 000's
+                          machine)
+mpc_pmsm      pmsm        direct_mpc (direct model predictive current control, sphere decoding
+                          over N periods)
 ============  ==========  ===================================================================
 """
 
@@ -21,7 +25,9 @@ from typing import Any
 
 from ..signals import EXTERNAL
 from .base import Controller, Decision, Strategy, VectorController, instantiate
+from .foc_im import FOCIMController, FOCIMParams
 from .foc_pmsm import FOCController, FOCParams
+from .mpc_pmsm import MPCController, MPCParams
 from .mptc_im import InductionController, InductionControllerParams
 from .mptc_pmsm import PMSMController, PMSMControllerParams
 
@@ -31,10 +37,14 @@ __all__ = [
     "Decision",
     "EXTERNAL",
     "FOCController",
+    "FOCIMController",
+    "FOCIMParams",
     "FOCParams",
     "Family",
     "InductionController",
     "InductionControllerParams",
+    "MPCController",
+    "MPCParams",
     "PMSMController",
     "PMSMControllerParams",
     "Strategy",
@@ -52,6 +62,8 @@ class Family(StrEnum):
     MPTC_IM = "mptc_im"
     MPTC_PMSM = "mptc_pmsm"
     FOC_PMSM = "foc_pmsm"
+    FOC_IM = "foc_im"
+    MPC_PMSM = "mpc_pmsm"
 
 
 #: family name → controller class: the one registry (keys are :class:`Family` members; a
@@ -60,6 +72,8 @@ CONTROLLERS: dict[str, type[Controller]] = {
     Family.MPTC_IM: InductionController,
     Family.MPTC_PMSM: PMSMController,
     Family.FOC_PMSM: FOCController,
+    Family.FOC_IM: FOCIMController,
+    Family.MPC_PMSM: MPCController,
 }
 
 

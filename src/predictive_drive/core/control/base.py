@@ -16,14 +16,23 @@ from collections.abc import Mapping
 from time import perf_counter_ns
 from typing import Any, ClassVar, NamedTuple, Protocol
 
-from ..fields import flag
-from ..inverter import active_then_zero, clarke, vector_voltages
+from ...errors import ConfigError
+from ..fields import flag, quantity
+from ..inverter import VECTOR_STATES, active_then_zero, clarke, vector_voltages
 from ..machines import Machine
 from ..machines.pmsm import PMSMCoefficients, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
 
 __all__ = [
+    "AFTER",
+    "NO_EFFORT",
+    "SWITCHABLE",
     "Controller",
+    "check_horizon",
+    "horizon_field",
+    "parse_switch",
+    "SwitchingEffort",
+    "lambda_sw_field",
     "pmsm_predicted",
     "Decision",
     "Strategy",
@@ -52,6 +61,109 @@ def delay_compensation() -> Any:
 
 NAN = math.nan
 TWO_PI = 2.0 * math.pi
+
+
+def lambda_sw_field(unit: str) -> Any:
+    """The ``lambda_sw`` field of a finite-control-set family: its cost per leg commutation, in
+    the unit of the family's cost (docs/physics.md#switching-effort)."""
+    return quantity(
+        "switching-effort weight: cost per leg commutation a candidate causes from the switching "
+        "state in force, the return to the zero vector within the period included (0: none)",
+        unit,
+        ge=0,
+        default=0.0,
+    )
+
+
+def _legs(a: tuple[int, int, int], b: tuple[int, int, int]) -> int:
+    return sum(x != y for x, y in zip(a, b))
+
+
+class SwitchingEffort:
+    """λ_sw × the leg commutations each candidate causes (docs/physics.md#switching-effort),
+    tabulated once per weight by the switching state in force (its code S_a·4 + S_b·2 + S_c).
+
+    ``full[code][n]``: vector n for the whole period (V0: the zero vector nearer to the state in
+    force, as :func:`~..inverter.active_then_zero` picks it); ``then_zero[code][n]``: vector
+    n ≥ 1 for part of the period, then the zero vector nearer to it (always one leg more).
+    """
+
+    def __init__(self, weight: float) -> None:
+        self.weight = weight
+        states = [((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)]
+        full, then_zero = [], []
+        for prev in states:
+            on = sum(prev)
+            zero = min(on, 3 - on)
+            legs = [zero, *(_legs(prev, VECTOR_STATES[n]) for n in range(1, 7))]
+            full.append(tuple(weight * x for x in legs))
+            then_zero.append(tuple(weight * (x + (n > 0)) for n, x in enumerate(legs)))
+        self.full: tuple[tuple[float, ...], ...] = tuple(full)
+        self.then_zero: tuple[tuple[float, ...], ...] = tuple(then_zero)
+
+    @staticmethod
+    def code(switches: tuple[int, int, int]) -> int:
+        return switches[0] * 4 + switches[1] * 2 + switches[2]
+
+    def applied(self, code: int, vector: int, fraction: float) -> float:
+        """The cost of vector ``vector`` applied for ``fraction`` of Ts, then the zero vector."""
+        if vector == 0 or fraction <= 0.0:
+            return self.full[code][0]
+        return self.full[code][vector] if fraction >= 1.0 else self.then_zero[code][vector]
+
+
+#: what a running controller lets a live parameter change: its law and, for families with long
+#: horizons, the horizon N (docs/physics.md#long-horizons)
+SWITCHABLE = ("strategy", "horizon")
+
+
+def horizon_field(strategies: str, maximum: int) -> Any:
+    """The ``horizon`` field of a family whose laws ``strategies`` look N periods ahead."""
+    return quantity(
+        f"prediction horizon N, periods the cost sums over ({strategies}; 1: one step, the "
+        f"papers' law); switchable at run time",
+        ge=1,
+        le=maximum,
+        integer=True,
+        default=1,
+    )
+
+
+def check_horizon(params: Any, strategies: tuple[str, ...]) -> None:
+    """ConfigError if ``params`` (a family's settings) give a horizon to a law without one."""
+    if params.horizon > 1 and params.strategy not in strategies:
+        raise ConfigError(
+            f"torque_controller.horizon {params.horizon}: {params.strategy} looks one period "
+            f"ahead; only {', '.join(strategies)} take a horizon (1..N)"
+        )
+
+
+def parse_switch(text: str) -> tuple[str, Any]:
+    """A switch as the command line and the launcher write it: a strategy's name, or
+    ``horizon=N`` → (parameter, value); ValueError for a value that is not a whole number."""
+    key, sep, value = text.partition("=")
+    if not sep:
+        return "strategy", text
+    if key != "horizon":
+        raise ValueError(
+            f"{text!r}: a switch is a strategy's name or horizon=N (the settings a running "
+            f"controller changes: {', '.join(SWITCHABLE)})"
+        )
+    try:
+        return key, int(value)
+    except ValueError:
+        raise ValueError(f"{text!r}: horizon=N takes a whole number of periods") from None
+
+
+#: the switching effort's costs when λ_sw = 0 (adding 0.0 changes no cost)
+NO_EFFORT = (0.0,) * 7
+#: the switching state's code after vector n for the whole period from the state of code c
+#: (``AFTER[c][n]``): the vector's, or for V0 the zero vector nearer to c
+AFTER = tuple(
+    tuple((7 if bin(c).count("1") >= 2 else 0) if n == 0 else SwitchingEffort.code(
+        VECTOR_STATES[n]) for n in range(7))
+    for c in range(8)
+)  # fmt: skip
 
 
 class Strategy(Protocol):
@@ -91,20 +203,89 @@ class Controller:
     machine: ClassVar[Machine]
     params_type: ClassVar[type]
     strategies: ClassVar[Mapping[str, type]]
+    #: the strategies that look ``horizon`` periods ahead, and the largest horizon
+    horizon_strategies: ClassVar[tuple[str, ...]] = ()
+    max_horizon: ClassVar[int] = 1
 
     def __init__(self, params: Any, *, ts: float) -> None:
         self.params = params
         self.ts = ts
         self._names = tuple(self.strategies)
+        self.horizon = int(getattr(params, "horizon", 1))  #: N, periods
         self.set_strategy(params.strategy)
         self._u_dc = NAN
         self._compensate = bool(getattr(params, "delay_compensation", False))
         self.u_in_force = 0j  #: average αβ voltage of the command acting this period, V
 
+    def refusal(self, name: str) -> str | None:
+        """Why strategy ``name`` cannot run in this controller, in words (None: it can). A
+        live switch asks this first and is refused with it, the running strategy staying."""
+        if name not in self.strategies:
+            return (
+                f"unknown strategy {name!r} for controller family {self.family!r}; "
+                f"valid: {', '.join(self.strategies)}"
+            )
+        if self.horizon > 1 and name not in self.horizon_strategies:
+            return (
+                f"{name} looks one period ahead, and torque_controller.horizon is "
+                f"{self.horizon} (a horizon for {', '.join(self.horizon_strategies)}): set "
+                f"horizon 1 first"
+            )
+        return None
+
+    def horizon_refusal(self, value: Any) -> str | None:
+        """Why the horizon cannot become ``value`` (None: it can)."""
+        if not self.horizon_strategies:
+            return (
+                f"controller family {self.family!r} has no horizon: its laws look one period ahead"
+            )
+        if isinstance(value, bool) or not isinstance(value, int):
+            return f"torque_controller.horizon must be a whole number of periods, got {value!r}"
+        if not 1 <= value <= self.max_horizon:
+            return f"torque_controller.horizon must be 1..{self.max_horizon} (periods), got {value}"
+        if value > 1 and self.strategy.name not in self.horizon_strategies:
+            return (
+                f"torque_controller.horizon {value}: {self.strategy.name} looks one period "
+                f"ahead; only {', '.join(self.horizon_strategies)} take a horizon"
+            )
+        return None
+
+    def switch_refusal(self, key: str, value: Any) -> str | None:
+        """Why a live change of ``key`` (one of :data:`SWITCHABLE`) to ``value`` cannot be made
+        (None: it can); the running setting stays."""
+        if key == "strategy":
+            return self.refusal(str(value))
+        return self.horizon_refusal(value)
+
+    def switch(self, key: str, value: Any) -> None:
+        """Change ``key`` (one of :data:`SWITCHABLE`) at the next step; ValueError (the
+        :meth:`switch_refusal`) if it cannot."""
+        if key == "strategy":
+            self.set_strategy(str(value))
+            return
+        reason = self.horizon_refusal(value)
+        if reason is not None:
+            raise ValueError(reason)
+        self.horizon = int(value)
+        self._horizon_set()
+
+    def _horizon_set(self) -> None:
+        """The horizon changed (a family with a plan from the last decision drops it)."""
+
+    @property
+    def law_horizon(self) -> float:
+        """The horizon of the law in force (NaN for a law without one): the command's field."""
+        return float(self.horizon) if self.strategy.name in self.horizon_strategies else NAN
+
     def set_strategy(self, name: str) -> None:
-        """Switch the control law; takes effect at the next step. ValueError if unknown."""
+        """Switch the control law; takes effect at the next step. ValueError (the
+        :meth:`refusal`) if it cannot run here."""
+        reason = self.refusal(name)
+        if reason is not None:
+            raise ValueError(reason)
         self.strategy: Any = instantiate(self.family, self.strategies, name)
         self._index = float(self._names.index(name))
+        self._horizon_set()
 
     def _dc_link(self, u_dc: float) -> None:
         """The measured DC-link voltage (V) changed (and at the first step)."""
@@ -203,6 +384,7 @@ class VectorController(Controller):
                 fraction,
                 t_u,
                 float(cal),
+                self.law_horizon,
                 self.est_torque,
                 self.est_flux,
                 self.est_flux_angle,

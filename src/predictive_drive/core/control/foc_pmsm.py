@@ -8,11 +8,9 @@ error into u_dq, limited to the circle inscribed in the hexagon (the PIs hold th
 while it limits: clamping anti-windup); inverse Park at the rotor angle of the period's middle
 (θ_e + ω_e·Ts/2: the volt-seconds of a period act, on average, there), then SVPWM.
 
-The current PIs are designed on the zero-order-hold model of each axis, i(k+1) = a·i(k) + b·u(k)
-with a = e^{-R_s Ts/L}, b = (1 - a)/R_s (the controller's own R_s, L_d, L_q): the PI zero cancels
-the pole, C(z) = (K/b)(z - a)/(z - 1), so the closed loop is first order, i(k+1) = i(k) +
-K·(i* - i(k)), K = 1 - e^{-2π f_c Ts}: the chosen bandwidth f_c exactly, on the nominal model.
-In PI form: K_p = K/b, integrator += K(1 - a)/b·e per step.
+The current PIs (:mod:`.foc`, shared with ``foc_im``) are designed on the zero-order-hold model
+of each axis with the controller's own R_s, L_d, L_q: the PI zero cancels the pole, so the
+closed loop is first order at the chosen bandwidth f_c (or tuned by the technical optimum).
 """
 
 from __future__ import annotations
@@ -24,12 +22,24 @@ from dataclasses import dataclass
 
 from ...errors import ConfigError
 from ..fields import check_fields, choice, quantity
-from ..inverter import clarke, inverse_clarke, inverse_park, park
+from ..inverter import inverse_park, park
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
-from ..signals import Command, PhasePulses, Reference, State
-from ..svpwm import linear_limit, svpwm
-from .base import Controller, delay_compensation, pmsm_predicted
+from ..signals import Reference, State
+from ..svpwm import linear_limit
+from .base import delay_compensation, pmsm_predicted
+from .foc import (
+    CurrentPI,
+    DQCurrentLoop,
+    FieldOrientedController,
+    Modulator,
+    current_bandwidth,
+    current_pi,
+    current_pi_of,
+    current_tuning,
+    dead_time_compensation,
+    drop_compensation,
+)
 from .mtpa import INJECTION_FORMS, FormulaMTPA, InjectionMTPA, MTPAContext, MTPAInputs, ZeroD
 
 __all__ = [
@@ -62,9 +72,8 @@ class FOCParams:
 
     motor: PMSM
     strategy: str = choice("MTPA law; switchable at run time", tuple(FOC_STRATEGIES))
-    current_bandwidth_hz: float = quantity(
-        "current-loop bandwidth (first order on the nominal model)", "Hz", gt=0, default=300.0
-    )
+    current_bandwidth_hz: float = current_bandwidth(300.0)
+    current_tuning: str = current_tuning("bandwidth")
     injection_amplitude: float = quantity(
         "dither amplitude A of the current angle (foc_injection)", "rad", ge=0, le=0.5, default=0.05
     )
@@ -101,75 +110,39 @@ class FOCParams:
         default=5.0,
     )
     delay_compensation: bool = delay_compensation()
-    dead_time_compensation: float = quantity(
-        "dead time the voltage feed-forward compensates: each phase's reference raised by "
-        "sign(i)·(t_d/Ts·U_dc + drop) (0: none)",
-        "s",
-        ge=0,
-        default=0.0,
-    )
-    drop_compensation: float = quantity(
-        "device drop the voltage feed-forward compensates (with dead_time_compensation)",
-        "V",
-        ge=0,
-        default=0.0,
-    )
+    dead_time_compensation: float = dead_time_compensation()
+    drop_compensation: float = drop_compensation()
 
     def __post_init__(self) -> None:
         check_fields(self)
 
 
-@dataclass(frozen=True)
-class CurrentPI:
-    """Gains of one axis: u = kp·e + I, I += ki·e per step (see the module's text)."""
+class CurrentLoop(DQCurrentLoop):
+    """The PMSM's dq current loop (:class:`~.foc.DQCurrentLoop`): a PI per axis on its own R_s,
+    L_d, L_q, decoupled by -ω_e L_q i_q and ω_e (L_d i_d + ψ_f), limited to ``u_max``."""
 
-    kp: float  #: V/A
-    ki: float  #: V/A per step
-    pole: float  #: a = e^{-R_s Ts/L}: the open-loop pole the PI zero cancels
-    gain: float  #: K = 1 - e^{-2π f_c Ts}: the closed loop's step per period
-
-
-def current_pi(*, r_s: float, l_s: float, ts: float, bandwidth_hz: float) -> CurrentPI:
-    """Pole-cancelling discrete PI of an R-L axis (R_s in Ω, L in H, Ts in s) for a first-order
-    closed loop at the bandwidth (Hz)."""
-    a = math.exp(-r_s * ts / l_s)
-    b = (1.0 - a) / r_s
-    k = 1.0 - math.exp(-TWO_PI * bandwidth_hz * ts)
-    return CurrentPI(kp=k / b, ki=k * (1.0 - a) / b, pole=a, gain=k)
-
-
-class CurrentLoop:
-    """The dq current loop: PI per axis (see :func:`current_pi`) with decoupling, the voltage
-    limited to ``linear_limit(u_dc)`` with clamping anti-windup. The decoupling terms
-    -ω_e L_q i_q and ω_e (L_d i_d + ψ_f) use the current the closed loop will have at the middle
-    of the period the voltage is applied over, i + K/2·(i* - i): with the sampled current
-    instead, the coupling left over lets the d and q responses differ, so a rotating reference
-    makes the current's amplitude ripple."""
-
-    def __init__(self, motor: PMSM, *, ts: float, bandwidth_hz: float) -> None:
+    def __init__(
+        self, motor: PMSM, *, ts: float, bandwidth_hz: float, tuning: str = "bandwidth"
+    ) -> None:
         self.l_d, self.l_q, self.psi_f = motor.l_d, motor.l_q, motor.psi_f
-        self.d = current_pi(r_s=motor.r_s, l_s=motor.l_d, ts=ts, bandwidth_hz=bandwidth_hz)
-        self.q = current_pi(r_s=motor.r_s, l_s=motor.l_q, ts=ts, bandwidth_hz=bandwidth_hz)
-        self.integral = 0j  #: the integrators, V (d + j·q)
+        r = motor.r_s
+        super().__init__(
+            current_pi_of(tuning, r=r, ind=motor.l_d, ts=ts, bandwidth_hz=bandwidth_hz),
+            current_pi_of(tuning, r=r, ind=motor.l_q, ts=ts, bandwidth_hz=bandwidth_hz),
+        )
 
     def voltage(self, i_ref: complex, i_dq: complex, w_e: float, u_max: float) -> complex:
         """u_dq (V) for the coming period from the reference and measured currents (A), the
         electrical speed (rad/s) and the voltage limit (V)."""
-        pd, pq = self.d, self.q
-        e = i_ref - i_dq
-        i_m = i_dq + complex(0.5 * pd.gain * e.real, 0.5 * pq.gain * e.imag)
-        u = complex(
-            pd.kp * e.real + self.integral.real - w_e * self.l_q * i_m.imag,
-            pq.kp * e.imag + self.integral.imag + w_e * (self.l_d * i_m.real + self.psi_f),
-        )
-        mag = abs(u)
-        if mag > u_max:
-            return u * (u_max / mag)  # limited: the integrators hold (clamping anti-windup)
-        self.integral += complex(pd.ki * e.real, pq.ki * e.imag)
-        return u
+        l_d, l_q, psi_f = self.l_d, self.l_q, self.psi_f
+
+        def decoupling(i_m: complex) -> complex:
+            return complex(-w_e * l_q * i_m.imag, w_e * (l_d * i_m.real + psi_f))
+
+        return self.voltage_with(i_ref, i_dq, u_max, decoupling)
 
 
-class FOCController(Controller):
+class FOCController(FieldOrientedController):
     """Field-oriented control of the PMSM: ``step(state k, reference k) -> command k``."""
 
     family = "foc_pmsm"
@@ -180,12 +153,16 @@ class FOCController(Controller):
     def __init__(self, params: FOCParams, *, ts: float) -> None:
         m = params.motor
         samples = 1.0 / (params.injection_hz * ts)
+        #: why foc_injection cannot run at this period (None: it can); the other laws can
+        self._dither_error: str | None = None
         if abs(samples - round(samples)) > 1e-6 or round(samples) < 4:
-            raise ConfigError(
+            self._dither_error = (
                 f"torque_controller.injection_hz: {params.injection_hz:g} Hz gives "
                 f"{samples:.4g} samples per dither period at Ts = {ts:g} s; it must be a whole "
                 f"number >= 4 (e.g. {1.0 / (round(max(samples, 4)) * ts):g} Hz)"
             )
+            if params.strategy == "foc_injection":
+                raise ConfigError(self._dither_error)
         self._ctx = MTPAContext(
             ts=ts,
             p=m.p,
@@ -194,7 +171,7 @@ class FOCController(Controller):
             l_q=m.l_q,
             psi_f=m.psi_f,
             amplitude=params.injection_amplitude,
-            samples=round(samples),
+            samples=max(4, round(samples)),
             gain=params.injection_gain,
             lowpass_hz=params.injection_lowpass_hz,
             form=params.injection_form,
@@ -202,11 +179,14 @@ class FOCController(Controller):
             max_angle=params.max_current_angle,
             observer_hz=params.injection_observer_hz,
         )
-        self.loop = CurrentLoop(m, ts=ts, bandwidth_hz=params.current_bandwidth_hz)
+        self.loop = CurrentLoop(
+            m, ts=ts, bandwidth_hz=params.current_bandwidth_hz, tuning=params.current_tuning
+        )
         self._k_t = 1.5 * m.p * m.psi_f
         self._coef = PMSMCoefficients.of(m)
-        self._ff_time = params.dead_time_compensation / ts  #: share of Ts to feed forward
-        self._ff_drop = params.drop_compensation
+        self._modulator = Modulator(
+            ts=ts, dead_time=params.dead_time_compensation, drop=params.drop_compensation
+        )
         self.theta = 0.0  #: current angle in use, rad
         self.u_dq = 0j  #: the voltage applied over the last period, rotor frame, V
         self.u_ab = 0j  #: the same in αβ, V
@@ -217,19 +197,17 @@ class FOCController(Controller):
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
         super().__init__(params, ts=ts)
 
+    def refusal(self, name: str) -> str | None:
+        if name == "foc_injection" and self._dither_error is not None:
+            return self._dither_error
+        return super().refusal(name)
+
     def set_strategy(self, name: str) -> None:
         super().set_strategy(name)
         self.strategy.start(self.theta, self._ctx)  # bumpless: the new law starts where we are
 
     def _predict(self, state: State, u_ab: complex) -> State:
         return pmsm_predicted(self._coef, self.ts, state, u_ab)
-
-    def _feed_forward(self, state: State) -> complex:
-        """The dead-time and drop feed-forward (αβ, V): each phase's voltage raised by what the
-        inverter loses in the direction of its current (docs/physics.md#dead-time-and-device-drops)."""
-        v = self._ff_time * state.u_dc + self._ff_drop
-        sign = [(x > 0.0) - (x < 0.0) for x in inverse_clarke(complex(state.i_alpha, state.i_beta))]
-        return clarke(sign[0] * v, sign[1] * v, sign[2] * v)
 
     def _observe(self, state: State) -> None:
         c = self._ctx
@@ -274,31 +252,5 @@ class FOCController(Controller):
         self.u_ab = inverse_park(u, state.theta_e + 0.5 * w_e * self.ts)
         return self.u_ab
 
-    def _command(self, u_ab: complex, state: State, compute_ns: float) -> Command:
-        if self._ff_time or self._ff_drop:
-            ff = self._feed_forward(state)
-            mod = svpwm(u_ab + ff, state.u_dc)
-            self.u_ab = mod.applied - ff  # what the machine gets, the inverter's loss made good
-        else:
-            mod = svpwm(u_ab, state.u_dc)
-            self.u_ab = mod.applied
-        gradient = getattr(self.strategy, "gradient", NAN)
-        pulses: PhasePulses = mod.pulses
-        return self.command(
-            state,
-            pulses,
-            (
-                NAN,  # vector: no finite-control-set decision
-                NAN,  # duty
-                NAN,  # t_u
-                0.0,  # cal: no vector predicted
-                self.est_torque,
-                self.est_flux,
-                self.est_flux_angle,
-                self.theta,
-                self.i_ref.real,
-                self.i_ref.imag,
-                gradient,
-            ),
-            compute_ns,
-        )
+    def _mtpa(self) -> tuple[float, float]:
+        return self.theta, getattr(self.strategy, "gradient", NAN)

@@ -13,12 +13,24 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.induction import InductionCoefficients, InductionMotor
 from ..signals import Reference, State, new_record
-from .base import Decision, VectorController, delay_compensation
+from .base import (
+    AFTER,
+    NO_EFFORT,
+    Decision,
+    SwitchingEffort,
+    VectorController,
+    check_horizon,
+    delay_compensation,
+    horizon_field,
+    lambda_sw_field,
+)
+from .search import Expand, branch_and_bound
 
 __all__ = [
     "A0_FORMS",
@@ -63,19 +75,51 @@ class IMPrediction:
         "volts",
         "active",
         "_z",
+        "effort",
+        "code",
+        "sw",
+        "sw_zero",
+        "horizon",
+        "wr",
     )
 
-    def __init__(self, c: InductionCoefficients, ts: float, lam: float, a0_printed: bool) -> None:
+    def __init__(
+        self,
+        c: InductionCoefficients,
+        ts: float,
+        lam: float,
+        a0_printed: bool,
+        effort: SwitchingEffort | None = None,
+    ) -> None:
         self.c = c
         self.ts = ts
         self.lam = lam
         self.a0_printed = a0_printed
         self.volts: tuple[complex, ...] = ()
+        #: the switching effort (None: λ_sw = 0) and, per candidate, its cost from the state in
+        #: force (``code``): ``sw`` for the whole period, ``sw_zero`` then the zero vector
+        self.effort = effort
+        self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
+        self.code = 0
+        self.sw: tuple[float, ...] = NO_EFFORT
+        self.sw_zero: tuple[float, ...] = NO_EFFORT
+        self.switching((0, 0, 0))
+
+    def switching(self, switches: tuple[int, int, int]) -> None:
+        """The switching state in force (the one the candidates' commutations count from)."""
+        e = self.effort
+        if e is None:
+            self.code = 0
+            self.sw = self.sw_zero = NO_EFFORT
+            return
+        self.code = code = e.code(switches)
+        self.sw, self.sw_zero = e.full[code], e.then_zero[code]
 
     def prepare(self, i: complex, psi: complex, omega_m: float, volts: tuple[complex, ...]) -> None:
         a_ii, b_ip, cw, rs, p, tk, _, _ = self.c
         ts = self.ts
         wr = p * omega_m
+        self.wr = wr
         self.i = i
         self.psi = psi
         if volts is not self.volts:
@@ -93,6 +137,10 @@ class IMPrediction:
         self.gain_i = ts * cw
         self._z = i - cw * psi
 
+    def root(self) -> tuple[complex, complex, int]:
+        """The search's root (:func:`horizon_stages`): the state the law decides from."""
+        return self.i, self.psi, self.code
+
     def a_u(self, u: complex) -> float:
         """Voltage-dependent part of dT_e/dt, N·m/s per applied vector u (paper 000 eq 10)."""
         z = self._z
@@ -108,24 +156,43 @@ class IMPrediction:
 
 
 class MPTC:
-    """Conventional FCS-MPTC: 7 vectors, g = |T* - T(k+1)| + λ·|ψ* - |ψ(k+1)||, argmin for Ts."""
+    """Conventional FCS-MPTC: 7 vectors, g = |T* - T(k+1)| + λ·|ψ* - |ψ(k+1)||, argmin for Ts.
+    Over a horizon of N > 1 periods the stage costs of a sequence of vectors are summed and the
+    first vector of the best sequence is applied, found by branch and bound (:mod:`.search`),
+    the last optimum shifted as its first bound (``plan``)."""
 
     name = "mptc"
 
+    def __init__(self) -> None:
+        self.plan: tuple[int, ...] = ()
+
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        return _FULL_PERIOD[_argmin_full_period(m, torque_ref, flux_ref)]
+        if m.horizon == 1:
+            return _FULL_PERIOD[_argmin_full_period(m, torque_ref, flux_ref)]
+        guess = (*self.plan[1:], self.plan[-1]) if self.plan else ()
+        found = branch_and_bound(
+            horizon_stages(m, torque_ref, flux_ref), m.root(), m.horizon, guess
+        )
+        self.plan = found.sequence
+        return new_record(Decision, (found.sequence[0], 1.0, NAN, found.nodes))
 
 
 class MPTCDB:
-    """MPTC, then a deadbeat duty for the chosen vector (paper 000 §2, eq 9-14)."""
+    """MPTC, then a deadbeat duty for the chosen vector (paper 000 §2, eq 9-14). With a switching
+    effort, each candidate's cost counts the commutations of the duty it would be given."""
 
     name = "mptc_db"
 
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        n = _argmin_full_period(m, torque_ref, flux_ref)
-        if n == 0:
-            return _FULL_PERIOD[0]
-        t_u = m.deadbeat_time(m.volts[n], torque_ref)
+        if m.effort is None:
+            n = _argmin_full_period(m, torque_ref, flux_ref)
+            if n == 0:
+                return _FULL_PERIOD[0]
+            t_u = m.deadbeat_time(m.volts[n], torque_ref)
+        else:
+            n, t_u = _argmin_with_duty(m, torque_ref, flux_ref)
+            if n == 0:
+                return _FULL_PERIOD[0]
         return new_record(Decision, (n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7))
 
 
@@ -144,8 +211,9 @@ class DBMPTC:
         tk = m.c.torque_k
         z = m._z
         zr, zi = z.real, z.imag
+        sw, sw_zero = m.sw, m.sw_zero
         # V0: applied for the whole period, t_u = Ts
-        best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free))
+        best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free)) + sw[0]
         best_n, best_t = 0, ts
         raw_best = ts
         cal = 1
@@ -158,7 +226,10 @@ class DBMPTC:
             cal += 1
             t1 = te + t_u * au + a0ts
             p1 = psi_free + t_u * u
+            # the commutations: the whole period, none of it (t_u = 0: zero vector), or the
+            # vector and then the zero vector (+ 0.0 when λ_sw = 0: the same cost, bit for bit)
             g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+            g += sw[n] if t_u >= ts else sw_zero[n] if t_u > 0.0 else sw[0]
             if g < best:
                 best, best_n, best_t, raw_best = g, n, t_u, t_raw
         return new_record(Decision, (best_n, best_t / ts, raw_best, cal))
@@ -168,21 +239,75 @@ class DBMPTC:
 _FULL_PERIOD = tuple(Decision(n, 1.0, NAN, 7) for n in range(7))
 
 
+#: the largest horizon mptc takes (its tree has 7^N leaves), and the laws that take one
+MAX_HORIZON = 6
+HORIZON_STRATEGIES = ("mptc",)
+
+
+def horizon_stages(m: IMPrediction, torque_ref: float, flux_ref: float) -> Expand:
+    """mptc's stage over a horizon (:data:`~.search.Expand`): from a node (i_s, ψ_s, code of
+    the switching state in force) each vector's predicted node one period on — the one-step
+    law's forward Euler with ω frozen, the same arithmetic — and its stage cost
+    |T* - T| + λ_ψ |ψ* - |ψ|| + λ_sw × commutations."""
+    a_ii, b_ip, cw, rs, p, tk, _, _ = m.c
+    ts, lam, volts = m.ts, m.lam, m.volts
+    a = complex(a_ii, m.wr)
+    b = complex(b_ip, -m.wr * cw)
+    gain_i = ts * cw
+    full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
+
+    def expand(node: tuple[complex, complex, int]) -> list[tuple[float, int, Any]]:
+        i, psi, code = node
+        i_free = i + ts * (a * i + b * psi)
+        psi_free = psi - ts * rs * i
+        sw, after = full[code], AFTER[code]
+        out = []
+        for n, u in enumerate(volts):
+            i1 = i_free + gain_i * u
+            p1 = psi_free + ts * u
+            t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
+            g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + sw[n]
+            out.append((g, n, (i1, p1, after[n])))
+        return out
+
+    return expand
+
+
 def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> int:
-    """First strict minimum over V0..V6 of the full-period cost."""
+    """First strict minimum over V0..V6 of the full-period cost (with the switching effort of
+    each vector for the whole period)."""
     tk = m.c.torque_k
     lam = m.lam
-    i_free, psi_free, gain_i, ts = m.i_free, m.psi_free, m.gain_i, m.ts
+    i_free, psi_free, gain_i, ts, sw = m.i_free, m.psi_free, m.gain_i, m.ts, m.sw
     best = INF
     best_n = 0
     for n, u in enumerate(m.volts):
         i1 = i_free + gain_i * u
         p1 = psi_free + ts * u
         t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
-        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + sw[n]
         if g < best:
             best, best_n = g, n
     return best_n
+
+
+def _argmin_with_duty(m: IMPrediction, torque_ref: float, flux_ref: float) -> tuple[int, float]:
+    """MPTC-DB's choice with a switching effort: first strict minimum over V0..V6 of the
+    full-period cost plus the commutations of the duty each vector would be given; the chosen
+    vector and its raw t_u (s)."""
+    assert m.effort is not None
+    tk, lam, code, applied = m.c.torque_k, m.lam, m.code, m.effort.applied
+    i_free, psi_free, gain_i, ts = m.i_free, m.psi_free, m.gain_i, m.ts
+    best, best_n, best_t = INF, 0, NAN
+    for n, u in enumerate(m.volts):
+        i1 = i_free + gain_i * u
+        p1 = psi_free + ts * u
+        t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
+        t_u = m.deadbeat_time(u, torque_ref) if n else ts
+        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + applied(code, n, t_u / ts)
+        if g < best:
+            best, best_n, best_t = g, n, t_u
+    return best_n, best_t
 
 
 #: strategy name → class; registry order is the ``strategy`` index in commands
@@ -201,6 +326,8 @@ class InductionControllerParams:
     motor: InductionMotor
     strategy: str = choice("control law; switchable at run time", tuple(IM_STRATEGIES))
     lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
+    lambda_sw: float = lambda_sw_field("N·m")
+    horizon: int = horizon_field("mptc", MAX_HORIZON)
     soft_start_flux: float = quantity(
         "soft start until the flux estimate first reaches this", "Wb", ge=0, default=0.65
     )
@@ -216,6 +343,7 @@ class InductionControllerParams:
 
     def __post_init__(self) -> None:
         check_fields(self)
+        check_horizon(self, HORIZON_STRATEGIES)
 
 
 class InductionController(VectorController):
@@ -230,11 +358,16 @@ class InductionController(VectorController):
     machine = Machine.INDUCTION
     params_type = InductionControllerParams
     strategies = IM_STRATEGIES
+    horizon_strategies = HORIZON_STRATEGIES
+    max_horizon = MAX_HORIZON
 
     def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
         c = InductionCoefficients.of(params.motor)
         self._coef = c
-        self._pred = IMPrediction(c, ts, params.lambda_psi, params.a0_form == "paper_printed")
+        effort = SwitchingEffort(params.lambda_sw) if params.lambda_sw > 0 else None
+        self._pred = IMPrediction(
+            c, ts, params.lambda_psi, params.a0_form == "paper_printed", effort
+        )
         super().__init__(params, ts=ts)
         self.psi_hat = 0j
         self._psi_next = 0j  #: delay compensation: ψ̂ at k+1 under the voltage in force
@@ -266,6 +399,9 @@ class InductionController(VectorController):
         m = self._pred
         psi = self._psi_next if self._compensate else self.psi_hat
         m.prepare(i, psi, state.omega_m, self._volts)  # keeps i for _applied
+        m.horizon = self.horizon
+        if m.effort is not None:
+            m.switching(self.switches)
         self.est_torque = m.te
         if self.soft_start:
             return Decision(0 if abs(i) > self.params.soft_start_current else 1, 1.0, NAN, 0)

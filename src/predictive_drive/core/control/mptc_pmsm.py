@@ -17,13 +17,26 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from math import asin, cos, sin, sqrt
+from typing import Any
 
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
-from .base import Decision, VectorController, delay_compensation, pmsm_predicted
+from .base import (
+    AFTER,
+    NO_EFFORT,
+    Decision,
+    SwitchingEffort,
+    VectorController,
+    check_horizon,
+    delay_compensation,
+    horizon_field,
+    lambda_sw_field,
+    pmsm_predicted,
+)
 from .candidates import TABLES
+from .search import Expand, branch_and_bound
 
 __all__ = [
     "PMSM_STRATEGIES",
@@ -73,15 +86,44 @@ class PMSMPrediction:
         "q",
         "consts",
         "args",
+        "effort",
+        "sw",
+        "code",
+        "horizon",
+        "theta_e",
+        "w_e",
+        "volts",
     )
 
-    def __init__(self, c: PMSMCoefficients, ts: float, threshold: float, t_floor: float) -> None:
+    def __init__(
+        self,
+        c: PMSMCoefficients,
+        ts: float,
+        threshold: float,
+        t_floor: float,
+        effort: SwitchingEffort | None = None,
+    ) -> None:
         self.c = c
         self.ts = ts
         self.threshold = threshold
         self.t_floor = t_floor
         #: the parameters the candidate loop needs
         self.consts = (c.psi_f, 1.0 / c.l_d, 1.0 / c.l_q, c.torque_k, c.l_d - c.l_q, t_floor)
+        #: the switching effort (None: λ_sw = 0) and each vector's cost for the whole period
+        #: from the state in force (:meth:`switching`)
+        self.effort = effort
+        self.sw: tuple[float, ...] | None = None
+        self.code = 0  #: the switching state in force, S_a·4 + S_b·2 + S_c
+        self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
+        self.theta_e = 0.0  #: rotor angle at the sample, rad
+        self.w_e = 0.0  #: electrical speed, rad/s
+        self.volts: tuple[complex, ...] = ()
+
+    def switching(self, switches: tuple[int, int, int]) -> None:
+        """The switching state in force (the one the candidates' commutations count from)."""
+        self.code = SwitchingEffort.code(switches)
+        if self.effort is not None:
+            self.sw = self.effort.full[self.code]
 
     def prepare(self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float) -> None:
         """The estimate from the measured currents, rotor angle and DC link."""
@@ -131,14 +173,19 @@ class PMSMPrediction:
 
 
 def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: float) -> int:
-    """First strict minimum of eq 5 over V0 and the non-zero vectors ``active`` (ascending; sqrt
-    dropped: it keeps the order). V0 leaves ψ and δ as they are, so its prediction is T̂ itself."""
+    """First strict minimum of eq 5 over V0 and the non-zero vectors ``active`` (ascending). V0
+    leaves ψ and δ as they are, so its prediction is T̂ itself. Without a switching effort the
+    sqrt is dropped (it keeps the order); with one, each vector's effort adds to the cost
+    itself."""
+    sw = m.sw
     pf, ild, ilq, tk, dl, t_floor, psi, delta, th, q, te = m.args
     inv_t = 1.0 / (t_ref if t_ref > t_floor else -t_ref if -t_ref > t_floor else t_floor)
     inv_p = 1.0 / psi_ref
     e_t = (te - t_ref) * inv_t
     e_p = (psi - psi_ref) * inv_p
     best = e_t * e_t + e_p * e_p
+    if sw is not None:
+        best = sqrt(best) + sw[0]
     best_n = 0
     qq1 = 1.0 + q * q
     q2 = q + q
@@ -152,6 +199,8 @@ def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: f
         e_t = (tk * i_q1 * (pf + dl * (psi1 * cos(d1) - pf) * ild) - t_ref) * inv_t
         e_p = (psi1 - psi_ref) * inv_p
         g = e_t * e_t + e_p * e_p
+        if sw is not None:
+            g = sqrt(g) + sw[n]
         if g < best:
             best = g
             best_n = n
@@ -159,6 +208,9 @@ def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: f
 
 
 _ZERO = Decision(0, 1.0, NAN, 0)
+#: the largest horizon mptc takes (its tree has 7^N leaves), and the laws that take one
+MAX_HORIZON = 6
+HORIZON_STRATEGIES = ("mptc",)
 #: the decisions a full-period strategy can return, by (predictions evaluated, vector): no per-step
 #: allocation
 _DECISIONS = {cal: tuple(Decision(n, 1.0, NAN, cal) for n in range(7)) for cal in range(1, 8)}
@@ -167,12 +219,56 @@ _TWELVE = TWO_PI / 12
 
 
 class MPTC:
-    """Conventional MPTC (paper 001 §2): all 7 vectors, cost eq 5."""
+    """Conventional MPTC (paper 001 §2): all 7 vectors, cost eq 5. Over a horizon of N > 1
+    periods the stage costs of a sequence are summed (:func:`horizon_stages`) and the first
+    vector of the best sequence applied, found by branch and bound (:mod:`.search`), the last
+    optimum shifted as its first bound (``plan``)."""
 
     name = "mptc"
 
+    def __init__(self) -> None:
+        self.plan: tuple[int, ...] = ()
+
     def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        return _DECISIONS[7][_argmin(m, ACTIVE_VECTORS, torque_ref, flux_ref)]
+        if m.horizon == 1:
+            return _DECISIONS[7][_argmin(m, ACTIVE_VECTORS, torque_ref, flux_ref)]
+        guess = (*self.plan[1:], self.plan[-1]) if self.plan else ()
+        root = (m.psi * complex(math.cos(m.theta_psi), math.sin(m.theta_psi)), 0, m.code)
+        found = branch_and_bound(horizon_stages(m, torque_ref, flux_ref), root, m.horizon, guess)
+        self.plan = found.sequence
+        return Decision(found.sequence[0], 1.0, NAN, found.nodes)
+
+
+def horizon_stages(m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Expand:
+    """mptc's stage over a horizon (:data:`~.search.Expand`): from a node (ψ_s in αβ, the
+    period ℓ it starts, the code of the switching state in force) each vector's ψ_s one period
+    on by eq 1-3 in vector form, ψ + V·Ts (R_s neglected), its torque in the rotor frame at
+    the rotor's angle of that period (frozen over it, as eq 1-3 take it: θ_e + ℓ·ω_e·Ts), and
+    the stage cost sqrt(((T - T*)/T*)² + ((|ψ| - ψ*)/ψ*)²) + λ_sw × commutations."""
+    pf, ild, ilq, tk, dl, t_floor = m.consts
+    inv_t = 1.0 / (torque_ref if torque_ref > t_floor else -torque_ref if -torque_ref > t_floor
+                   else t_floor)  # fmt: skip
+    inv_p = 1.0 / flux_ref
+    steps = [v * m.ts for v in m.volts]
+    full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
+    turn = [complex(math.cos(-m.theta_e - ell * m.w_e * m.ts), math.sin(-m.theta_e - ell * m.w_e * m.ts))
+            for ell in range(m.horizon)]  # fmt: skip
+
+    def expand(node: tuple[complex, int, int]) -> list[tuple[float, int, Any]]:
+        psi, ell, code = node
+        rot, sw, after = turn[ell], full[code], AFTER[code]
+        out = []
+        for n, step in enumerate(steps):
+            p1 = psi + step
+            dq = p1 * rot
+            i_d = (dq.real - pf) * ild
+            i_q = dq.imag * ilq
+            e_t = (tk * i_q * (pf + dl * i_d) - torque_ref) * inv_t
+            e_p = (abs(p1) - flux_ref) * inv_p
+            out.append((sqrt(e_t * e_t + e_p * e_p) + sw[n], n, (p1, ell + 1, after[n])))
+        return out
+
+    return expand
 
 
 class Simplified1:
@@ -255,10 +351,13 @@ class PMSMControllerParams:
         nan_default="1 % of rated torque",
         default=NAN,
     )
+    lambda_sw: float = lambda_sw_field("1 (the cost is normalised, eq 5)")
+    horizon: int = horizon_field("mptc", MAX_HORIZON)
     delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:
         check_fields(self)
+        check_horizon(self, HORIZON_STRATEGIES)
         for name, share in (("torque_threshold", 0.05), ("t_floor", 0.01)):
             if math.isnan(getattr(self, name)):
                 object.__setattr__(self, name, share * self.motor.rated_torque)
@@ -271,10 +370,13 @@ class PMSMController(VectorController):
     machine = Machine.PMSM
     params_type = PMSMControllerParams
     strategies = PMSM_STRATEGIES
+    horizon_strategies = HORIZON_STRATEGIES
+    max_horizon = MAX_HORIZON
 
     def __init__(self, params: PMSMControllerParams, *, ts: float) -> None:
+        effort = SwitchingEffort(params.lambda_sw) if params.lambda_sw > 0 else None
         self._pred = PMSMPrediction(
-            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor
+            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor, effort
         )
         super().__init__(params, ts=ts)
 
@@ -289,7 +391,14 @@ class PMSMController(VectorController):
         self.est_flux_angle = m.theta_psi
 
     def _decide(self, state: State, ref: Reference) -> Decision:
-        d: Decision = self.strategy.decide(self._pred, ref.torque_ref, ref.flux_ref)
+        m = self._pred
+        m.horizon = self.horizon
+        if m.horizon > 1:
+            m.theta_e, m.w_e, m.volts = state.theta_e, m.c.p * state.omega_m, self._volts
+            m.switching(self.switches)
+        elif m.effort is not None:
+            m.switching(self.switches)
+        d: Decision = self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
         return d
 
     def decision_inputs(self, states: list[State]) -> list[PMSMPrediction]:

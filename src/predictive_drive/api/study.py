@@ -1,0 +1,188 @@
+"""What every study of ``reproduce`` shares, whatever its table: how its runs are made (the
+engine, a shortened duration, the local cores or a Dask cluster), where their bags go, the
+progress told case by case, and the metrics window the runs actually used.
+
+A study builds its cases (:class:`~.sweep.Case`), names each one's bag with
+:meth:`StudyRuns.bag` and runs them with :meth:`StudyRuns.runs`; :func:`studying` makes the
+:class:`StudyRuns` and, when the study ends, removes the bags nobody asked to keep. So a new
+study gets the progress, the bag handling and the window for nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..bag import check_new_bag
+from ..config import scenario_with
+from ..errors import PredictiveDriveError
+from .report import evaluate
+from .run import run
+from .sweep import Analysis, Case, Row, run_cases
+
+__all__ = ["BagsKept", "Reproduction", "StudyRuns", "studying"]
+
+
+@dataclass(frozen=True)
+class BagsKept:
+    """The bags a study kept (``reproduce --bags DIR``): where, how many, how many bytes."""
+
+    folder: str
+    count: int
+    bytes: int
+
+
+@dataclass(frozen=True)
+class Reproduction:
+    """What every reproduction says of itself: the scenario, the engine, the run length if
+    shortened (then not comparable with the paper), the settings applied to every run, the
+    paper's caption and how our figures are computed; and, filled in for every study alike
+    (:mod:`.study`), the metrics window each scenario's runs used (``windows``: scenario →
+    (from, to) s, the scenario's window cut by a shortened run) and the bags kept (``bags``:
+    None unless asked for)."""
+
+    scenario: str
+    engine: str
+    duration: float | None
+    settings: dict[str, Any]
+    paper: str
+    how: str
+    windows: dict[str, list[tuple[float, float]]] = field(default_factory=dict, kw_only=True)
+    bags: BagsKept | None = field(default=None, kw_only=True)
+
+    def head(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario,
+            "engine": self.engine,
+            "duration": self.duration,
+            "settings": self.settings,
+            "paper": self.paper,
+            "how": self.how,
+            "windows": {k: [list(w) for w in v] for k, v in self.windows.items()},
+            "bags": None if self.bags is None else dataclasses.asdict(self.bags),
+        }
+
+
+@dataclass
+class StudyRuns:
+    """How a study's runs are made and what they tell. ``folder``: where the bags go — the
+    user's (``keep``), or a temporary one removed when the study ends; ``progress(done,
+    planned)``: told as each case ends, counted across all the study's sweeps (``planned``
+    grows as each sweep starts); ``windows``: each scenario's metrics windows the runs used
+    (the scenario's, cut by ``duration``)."""
+
+    folder: Path
+    keep: bool
+    engine: str = "inprocess"
+    duration: float | None = None
+    jobs: int | None = None
+    scheduler: str | None = None
+    progress: Callable[[int, int], None] | None = None
+    #: ``local (N processes)``, ``dask (ADDRESS, N workers)`` or the ROS engine's name
+    where: str = ""
+    planned: int = 0
+    done: int = 0
+    windows: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+    bags: list[str] = field(default_factory=list)
+    stamp: str = field(default_factory=lambda: f"{time.strftime('%Y%m%d-%H%M%S')}_{os.getpid()}")
+
+    def bag(self, name: str, *, needed: bool = False) -> str | None:
+        """The bag of a case called ``name`` (the study's stamp is added): recorded when the
+        user keeps the bags, when the study needs it (``needed``: its figures, its timing
+        replays) or when the engine records anyway (a ROS graph); else None, not recorded."""
+        if not (self.keep or needed or self.engine != "inprocess"):
+            return None
+        path = str(check_new_bag(self.folder / f"{name}_{self.stamp}").resolve())
+        self.bags.append(path)
+        return path
+
+    def runs(
+        self, scenario: str, cases: Sequence[Case], *, analysis: Analysis | None = None
+    ) -> list[Row]:
+        """The cases, each recorded to its bag if it names one: a sweep across the cores or the
+        cluster (in-process), or one graph at a time (a ROS engine, which uses the cores
+        already). A failed case fails the study, naming it."""
+        before = self.done
+        self.planned += len(cases)
+
+        def finished(k: int, n: int) -> None:
+            self.done = before + k
+            if self.progress is not None:
+                self.progress(self.done, self.planned)
+
+        if self.engine == "inprocess":
+            result = run_cases(
+                scenario,
+                cases,
+                duration=self.duration,
+                scheduler=self.scheduler,
+                jobs=self.jobs,
+                analysis=analysis,
+                progress=finished,
+            )
+            if result.interrupted:
+                raise KeyboardInterrupt
+            rows, self.where = result.rows, result.engine
+        else:
+            rows, self.where = [], self.engine
+            for i, c in enumerate(cases):
+                rows.append(self._graph_run(scenario, c, analysis))
+                finished(i + 1, len(cases))
+        for row in rows:
+            if row.error or row.metrics is None:
+                raise PredictiveDriveError(
+                    f"reproduce {scenario}: the run {row.strategy} {row.settings or ''} failed: "
+                    f"{row.error}"
+                )
+            window = (row.metrics.t_start, row.metrics.t_end)
+            if window not in self.windows.setdefault(scenario, []):
+                self.windows[scenario].append(window)
+        return rows
+
+    def _graph_run(self, scenario: str, c: Case, analysis: Analysis | None) -> Row:
+        with tempfile.TemporaryDirectory() as tmp:
+            path = scenario_with(scenario, c.settings, Path(tmp))
+            r = run(
+                path, strategy=c.strategy, engine=self.engine, out=c.bag, duration=self.duration
+            )
+        ev = evaluate(r.bag)
+        extra = analysis(ev.trace, ev.scenario) if analysis is not None else {}
+        return Row(c.strategy, c.settings, ev.metrics, None, r.wall_s, c.bag, extra)
+
+    def kept(self) -> BagsKept | None:
+        """The bags kept for the user (None when they were not asked for)."""
+        if not self.keep:
+            return None
+        made = [Path(b) for b in self.bags if Path(b).exists()]
+        size = sum(f.stat().st_size for b in made for f in b.rglob("*") if f.is_file())
+        return BagsKept(str(self.folder), len(made), size)
+
+
+@contextmanager
+def studying(
+    bags: str | Path | None,
+    *,
+    engine: str = "inprocess",
+    duration: float | None = None,
+    jobs: int | None = None,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Iterator[StudyRuns]:
+    """A study's :class:`StudyRuns`; ``bags``: the folder to keep its bags in, or None: the
+    bags the study needs go to a temporary folder, removed when it ends (however it ends)."""
+    if bags is not None:
+        yield StudyRuns(Path(bags), True, engine, duration, jobs, scheduler, progress)
+        return
+    tmp = Path(tempfile.mkdtemp(prefix="predictive_drive_study_"))
+    try:
+        yield StudyRuns(tmp, False, engine, duration, jobs, scheduler, progress)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

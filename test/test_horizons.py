@@ -1,0 +1,303 @@
+"""Long horizons (docs/physics.md#long-horizons): multi-step MPTC of both families decides as an
+exhaustive enumeration of its cost written here independently (10,000 random states and
+references for each N ≤ 3), the horizon is refused where it does not apply, and N = 1 is the
+one-step law."""
+
+from __future__ import annotations
+
+import cmath
+import dataclasses
+import itertools
+import math
+import random
+
+import numpy as np
+import pytest
+
+from predictive_drive.config import load_scenario
+from predictive_drive.core.control import make_controller, make_strategy
+from predictive_drive.core.control.base import SwitchingEffort
+from predictive_drive.core.control.mptc_im import IMPrediction
+from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
+from predictive_drive.core.inverter import (
+    active_then_zero,
+    segments,
+    vector_voltages,
+)
+from predictive_drive.core.machines.induction import InductionCoefficients, induction_dynamics
+from predictive_drive.core.machines.pmsm import PMSM, PMSMCoefficients
+from predictive_drive.errors import ConfigError
+
+pytestmark = pytest.mark.core
+
+TS = 5e-5
+CASES = 10_000
+
+
+def switching_tables():
+    """By the switching state in force (0..7, S_a·4 + S_b·2 + S_c): each vector's leg
+    commutations for the whole period and the state it leaves, from the plant's own segment
+    count and the inverter's zero-vector rule — never from the controller's tables."""
+    legs, after = [], []
+    for c in range(8):
+        prev = ((c >> 2) & 1, (c >> 1) & 1, c & 1)
+        row_l, row_a = [], []
+        for n in range(7):
+            pulses, end = active_then_zero(n, 1.0, prev)
+            row_l.append(segments(pulses, prev)[2] // 2)
+            row_a.append(end[0] * 4 + end[1] * 2 + end[2])
+        legs.append(row_l)
+        after.append(row_a)
+    return np.array(legs, dtype=float), np.array(after)
+
+
+LEGS, AFTER = switching_tables()
+#: the switching state of each code
+STATE_OF = [((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)]
+SEQUENCES = {n: np.array(list(itertools.product(range(7), repeat=n))) for n in (1, 2, 3)}
+
+
+def best_first(costs: np.ndarray, seqs: np.ndarray) -> set[int]:
+    """The first vectors of the cheapest sequences: the lexicographically first minimum, and any
+    other within the independent arithmetic's rounding (1e-9 relative) of it."""
+    best = costs.min()
+    close = costs <= best + 1e-9 * (1.0 + abs(best))
+    return {int(seqs[i, 0]) for i in np.flatnonzero(close)}
+
+
+def switching_cost(seqs: np.ndarray, code: int, lam_sw: float) -> np.ndarray:
+    """λ_sw × commutations of each sequence, stage by stage (columns)."""
+    out = np.zeros(seqs.shape, dtype=float)
+    state = np.full(len(seqs), code)
+    for ell in range(seqs.shape[1]):
+        out[:, ell] = lam_sw * LEGS[state, seqs[:, ell]]
+        state = AFTER[state, seqs[:, ell]]
+    return out
+
+
+@pytest.fixture(scope="module")
+def im():
+    sc = load_scenario("im_short")
+    return InductionCoefficients.of(sc.controller.motor), sc.controller.lambda_psi
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 3])
+def test_multistep_mptc_of_the_induction_motor_equals_exhaustive_enumeration(im, horizon):
+    """Stage cost |T* - T| + λ_ψ |ψ* - |ψ|| + λ_sw × commutations, summed over N periods of the
+    plant's own dynamics function stepped by forward Euler with ω frozen (the family's model,
+    written here again), every one of the 7^N sequences: the controller's first vector is the
+    first vector of the cheapest sequence (ties: the lexicographically smallest)."""
+    coef, lam = im
+    volts = np.array(vector_voltages(582.0))
+    seqs = SEQUENCES[horizon]
+    s = make_strategy("mptc_im", "mptc")
+    rng = random.Random(horizon)
+    for _ in range(CASES):
+        psi = 0.71 * cmath.exp(1j * rng.uniform(-math.pi, math.pi)) * rng.uniform(0.95, 1.05)
+        i = rng.uniform(0, 8) * cmath.exp(1j * rng.uniform(-math.pi, math.pi))
+        w, t_ref = rng.uniform(-300, 300), rng.uniform(-7.5, 7.5)
+        code, lam_sw = rng.randrange(8), rng.choice([0.0, 0.0, 0.05, 0.3])
+        m = IMPrediction(coef, TS, lam, False, SwitchingEffort(lam_sw) if lam_sw else None)
+        m.prepare(i, psi, w, tuple(volts))
+        m.switching(STATE_OF[code])
+        m.code = code  # the state in force whether or not an effort counts it
+        m.horizon = horizon
+        s.plan = ()
+        got = s.decide(m, t_ref, 0.71).vector
+        # the independent enumeration
+        ii = np.full(len(seqs), i, dtype=complex)
+        pp = np.full(len(seqs), psi, dtype=complex)
+        cost = np.zeros(len(seqs))
+        sw = switching_cost(seqs, code, lam_sw)
+        for ell in range(horizon):
+            di, dp, _, _ = induction_dynamics(
+                0.0, (ii, pp, w, 0.0), (volts[seqs[:, ell]], 0.0), coef
+            )
+            ii, pp = ii + TS * di, pp + TS * dp
+            te = 1.5 * coef.p * (pp.conj() * ii).imag
+            cost = cost + (np.abs(t_ref - te) + lam * np.abs(0.71 - np.abs(pp)) + sw[:, ell])
+        assert got in best_first(cost, seqs), (i, psi, w, t_ref, code, lam_sw)
+
+
+def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs, sw, u_dc):
+    """Each sequence's cost by eq 1-3 in vector form: ψ(ℓ+1) = ψ(ℓ) + V·Ts (R_s neglected), the
+    rotor turning ω_e·Ts a period (frozen within it), torque from the flux in the rotor frame."""
+    volts = np.array(vector_voltages(u_dc))
+    psi = np.full(len(seqs), psi_ab, dtype=complex)
+    norm_t = max(abs(t_ref), t_floor)
+    cost = np.zeros(len(seqs))
+    for ell in range(seqs.shape[1]):
+        psi = psi + volts[seqs[:, ell]] * TS
+        dq = psi * cmath.exp(-1j * (theta_e + ell * w_e * TS))
+        i_d, i_q = (dq.real - motor.psi_f) / motor.l_d, dq.imag / motor.l_q
+        te = 1.5 * motor.p * (motor.psi_f * i_q + (motor.l_d - motor.l_q) * i_d * i_q)
+        e = np.hypot((te - t_ref) / norm_t, (np.abs(psi) - psi_ref) / psi_ref)
+        cost = cost + (e + sw[:, ell])
+    return cost
+
+
+IPMSM = PMSM(0.25, 0.0033, 0.0073, 0.2264, 3, 0.001, 15.0, 1000.0)
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 3])
+def test_multistep_mptc_of_the_pmsm_equals_exhaustive_enumeration(horizon):
+    c = PMSMCoefficients.of(IPMSM)
+    seqs = SEQUENCES[horizon]
+    s = make_strategy("mptc_pmsm", "mptc")
+    rng = random.Random(10 + horizon)
+    for _ in range(CASES):
+        i = complex(rng.uniform(-8, 4), rng.uniform(-25, 25))
+        theta = rng.uniform(0, 2 * math.pi)
+        i_ab = i * cmath.exp(1j * theta)
+        w_e, t_ref, psi_ref = rng.uniform(-400, 400), rng.uniform(-30, 30), rng.uniform(0.2, 0.3)
+        code, lam_sw = rng.randrange(8), rng.choice([0.0, 0.0, 0.01, 0.05])
+        m = PMSMPrediction(c, TS, 0.75, 0.15, SwitchingEffort(lam_sw) if lam_sw else None)
+        m.prepare(i_ab.real, i_ab.imag, theta, 312.0)
+        m.theta_e, m.w_e, m.volts, m.horizon = theta, w_e, vector_voltages(312.0), horizon
+        m.switching(STATE_OF[code])
+        s.plan = ()
+        got = s.decide(m, t_ref, psi_ref).vector  # N = 1: the one-step law, eq 1-3 in polar form
+        psi_ab = m.psi * cmath.exp(1j * m.theta_psi)
+        sw = switching_cost(seqs, code, lam_sw)
+        cost = pmsm_costs(IPMSM, psi_ab, theta, w_e, t_ref, psi_ref, 0.15, seqs, sw, 312.0)
+        assert got in best_first(cost, seqs), (i, theta, w_e, t_ref, psi_ref, code, lam_sw)
+
+
+def _with(scenario: str, **settings):
+    sc = load_scenario(scenario)
+    return dataclasses.replace(sc, controller=dataclasses.replace(sc.controller, **settings))
+
+
+@pytest.mark.parametrize(
+    ("scenario", "settings", "words"),
+    [
+        ("im_short", {"strategy": "mptc", "horizon": 0}, "horizon must be 1..6, got 0"),
+        ("im_short", {"strategy": "mptc", "horizon": 7}, "horizon must be 1..6, got 7"),
+        ("ipmsm_short", {"horizon": 2.5}, "horizon"),
+        ("im_short", {"strategy": "db_mptc", "horizon": 3}, "db_mptc looks one period ahead"),
+        ("ipmsm_short", {"strategy": "simplified2", "horizon": 2}, "simplified2 looks one"),
+    ],
+    ids=["zero", "above-max", "not-whole", "db_mptc", "simplified2"],
+)
+def test_a_horizon_is_refused_where_it_does_not_apply(scenario, settings, words):
+    with pytest.raises(ConfigError, match=words):
+        _with(scenario, **settings)
+
+
+def test_a_live_switch_is_refused_with_the_reason_and_the_running_setting_stays():
+    sc = _with("im_short", strategy="mptc", horizon=3)
+    ctrl = make_controller(sc.family, sc.controller, ts=sc.ts)
+    assert "db_mptc looks one period ahead" in ctrl.switch_refusal("strategy", "db_mptc")
+    assert "horizon must be 1..6 (periods), got 9" in ctrl.switch_refusal("horizon", 9)
+    assert "whole number of periods" in ctrl.switch_refusal("horizon", 2.0)
+    with pytest.raises(ValueError, match="looks one period ahead"):
+        ctrl.switch("strategy", "mptc_db")
+    assert (ctrl.strategy.name, ctrl.horizon) == ("mptc", 3)
+    ctrl.switch("horizon", 1)
+    assert ctrl.switch_refusal("strategy", "db_mptc") is None
+    ctrl.switch("strategy", "db_mptc")
+    assert "db_mptc looks one period ahead" in ctrl.switch_refusal("horizon", 2)
+    foc = load_scenario("ipmsm_mtpa_short")
+    ctrl = make_controller(foc.family, foc.controller, ts=foc.ts)
+    assert "has no horizon" in ctrl.switch_refusal("horizon", 2)
+
+
+def test_a_run_switches_its_horizon_at_the_step_and_records_it(tmp_path):
+    """--switch 0.01:horizon=3 in-process: the commands carry N = 1 before the step and 3 from
+    it, report's spans say so, and the bag holds the parameter event a node would publish."""
+    from predictive_drive.api.report import evaluate, strategies_of
+    from predictive_drive.api.run import run
+    from predictive_drive.readback import read_bag
+
+    r = run("ipmsm_short", engine="inprocess", duration=0.02, out=tmp_path / "b",
+            switches=[(0.01, "horizon=3")])  # fmt: skip
+    tr, info = read_bag(r.bag)
+    h = tr.col("command", "horizon")
+    assert np.all(h[:200] == 1.0) and np.all(h[200:] == 3.0)
+    assert tr.col("command", "cal")[200:].mean() > 7  # a tree searched, not 7 predictions
+    spans = [(s.strategy, s.first, s.last) for s in strategies_of(evaluate(r.bag))]
+    assert spans == [("mptc", 0, 199), ("mptc N=3", 200, 399)]
+    changed = [p for _, e in info.events for p in e.changed]
+    assert changed == [("horizon", 3)]
+
+
+def test_switches_are_checked_in_order_before_anything_runs():
+    from predictive_drive.api.run import switch_steps
+
+    sc = load_scenario("im_short", strategy="mptc")
+    assert switch_steps(sc, [(0.01, "horizon=3"), (0.02, "horizon=1"), (0.03, "db_mptc")]) == [
+        (200, "horizon=3"), (400, "horizon=1"), (600, "db_mptc"),
+    ]  # fmt: skip
+    for switches, words in [
+        ([(0.01, "db_mptc"), (0.02, "horizon=2")], "db_mptc looks one period ahead"),
+        ([(0.01, "horizon=3"), (0.02, "mptc_db")], "mptc_db looks one period ahead"),
+        ([(0.01, "horizon=x")], "horizon=N takes a whole number"),
+        ([(0.01, "lambda_sw=1")], "a switch is a strategy's name or horizon=N"),
+        ([(0.01, "horizon=1")], "1 is already the horizon then"),
+    ]:
+        with pytest.raises(ConfigError, match=words):
+            switch_steps(sc, switches)
+
+
+STATES8 = np.array([((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)])
+SWITCH_SEQUENCES = {n: np.array(list(itertools.product(range(8), repeat=n))) for n in (1, 2, 3)}
+
+
+def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, horizon):
+    """J of every switching sequence, simulated here step by step (complex dq arithmetic):
+    Σ |(i* - i(ℓ+1))/I_b|² + λ_u ‖u(ℓ) - u(ℓ-1)‖²; the sequences (codes 0..7 per step)."""
+    seqs = SWITCH_SEQUENCES[horizon]
+    a = cmath.exp(2j * math.pi / 3)
+    u_ab = 2.0 / 3.0 * u_dc * (STATES8[:, 0] + a * STATES8[:, 1] + a * a * STATES8[:, 2])
+    i = np.full(len(seqs), i_dq, dtype=complex)
+    last = np.tile(np.asarray(prev), (len(seqs), 1))
+    cost = np.zeros(len(seqs))
+    for ell in range(horizon):
+        code = seqs[:, ell]
+        u = u_ab[code] * cmath.exp(-1j * (theta + (ell + 0.5) * w_e * TS))
+        i_d = i.real + TS * (u.real - motor.r_s * i.real + w_e * motor.l_q * i.imag) / motor.l_d
+        i_q = (
+            i.imag
+            + TS
+            * (u.imag - motor.r_s * i.imag - w_e * (motor.l_d * i.real + motor.psi_f))
+            / motor.l_q
+        )
+        i = i_d + 1j * i_q
+        cost = cost + np.abs((i_ref - i) / i_base) ** 2
+        cost = cost + lam_u * np.sum((STATES8[code] - last) ** 2, axis=1)
+        last = STATES8[code]
+    return seqs, cost
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 3])
+def test_direct_mpc_equals_exhaustive_enumeration(horizon):
+    """The sphere decoder's first switch positions are the first of the cheapest of all 8^N
+    sequences (10,000 random currents, angles, speeds, references, weights and switch states
+    in force); the compiled decoder, where numba is installed, decides the same, bit for bit."""
+    from predictive_drive.core.control.kernels import compiled_sphere_decoder, kernel_unavailable
+    from predictive_drive.core.control.mpc_pmsm import current_problem
+    from predictive_drive.core.control.search import sphere_decode
+
+    compiled = compiled_sphere_decoder() if kernel_unavailable() is None else None
+    c = PMSMCoefficients.of(IPMSM)
+    i_base = 15.0 / (1.5 * 3 * 0.2264)
+    rng = random.Random(20 + horizon)
+    for _ in range(CASES):
+        i = complex(rng.uniform(-10, 5), rng.uniform(-25, 25))
+        ref = complex(rng.uniform(-10, 5), rng.uniform(-25, 25))
+        theta, w_e = rng.uniform(0, 2 * math.pi), rng.uniform(-400, 400)
+        lam_u, prev = rng.choice([0.001, 0.01, 0.1, 1.0]), tuple(STATES8[rng.randrange(8)])
+        problem = current_problem(
+            c, ts=TS, i_dq=i, theta_e=theta, w_e=w_e, u_dc=312.0, i_ref=ref, i_base=i_base,
+            lambda_u=lam_u, u_prev=prev, horizon=horizon,
+        )  # fmt: skip
+        found = sphere_decode(problem.v.tolist(), problem.ubar.tolist())
+        seqs, cost = direct_costs(IPMSM, i, theta, w_e, 312.0, ref, i_base, lam_u, prev, horizon)
+        best = cost.min()
+        near = np.flatnonzero(cost <= best + 1e-9 * (1.0 + best))
+        firsts = {tuple(STATES8[seqs[j, 0]]) for j in near}
+        assert found.sequence[:3] in firsts, (i, ref, theta, w_e, lam_u, prev)
+        # the decoder's distance is the cost less the problem's constant
+        assert found.cost + problem.constant == pytest.approx(best, rel=1e-7, abs=1e-9)
+        if compiled is not None:
+            assert compiled(problem.v, problem.ubar) == found
