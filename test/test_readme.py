@@ -178,6 +178,9 @@ NOT_RUN = {
     "runs; a command of the measurement it names",
     "make run": "the README's (shortened here)",
     "make bench": "test_every_verb_runs_from_the_install (bench --quick)",
+    "predictive-drive bench --json --graph ros,ros_example_dtc --no-horizons": "a benchmark: "
+    "it prints figures, asserts none (test_cli.py refuses its unknown keys)",
+    "predictive-drive bench --graph ros,ros_example_dtc": "the command above, printed as text",
     # how the timings the pages give were measured (the commands themselves run above)
     "time make run": "the measurement of the README's timing (make run runs here, shortened)",
     "time make test": "the measurement of the README's timing (make test: CI, .ci/run)",

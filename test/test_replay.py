@@ -247,7 +247,7 @@ def _interrupt(p: subprocess.Popen) -> None:
 
 def _play(domain: int, bag, *args: str, listener, ready, until=None, then=_interrupt):
     """``replay BAG ARGS --json`` as a child, started paused and let go once ``ready(listener)``
-    (its subscriptions matched: the player, like ros2 bag play, does not wait for readers);
+    (its subscriptions matched: the player's own wait, its discovery settle, is bounded);
     once ``until(listener)`` holds, if given, ``then(process)`` (default: Ctrl-C). Returns (exit
     status, report, stderr)."""
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
