@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -10,6 +11,8 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from predictive_drive.ros.placement import FASTDDS_PROFILES, FASTDDS_PROFILES_ENV, cpu_plan
 
 
 def parents() -> dict[int, int]:
@@ -128,3 +131,20 @@ def dask_cluster(tmp: Path, workers: int = 2) -> Iterator[str]:
             yield address
         finally:
             end_all(procs)
+
+
+def assert_placed(nodes: dict[str, int]) -> None:
+    """Every thread of every node process keeps to the CPU of the launcher's plan and runs under
+    SCHED_BATCH (the defaults), and the nodes run with the project's Fast DDS profile, which Fast
+    DDS parses without error."""
+    plan = cpu_plan("paired")
+    for name, pid in nodes.items():
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            status = (task / "status").read_text()
+            allowed = re.search(r"Cpus_allowed_list:\s*(\S+)", status).group(1)
+            if plan:
+                assert allowed == plan[name], (name, task.name, allowed)
+            assert os.sched_getscheduler(int(task.name)) == os.SCHED_BATCH, (name, task.name)
+        environ = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+        if not any(os.environ.get(k) for k in FASTDDS_PROFILES_ENV):  # else the user's wins
+            assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ

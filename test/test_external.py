@@ -27,7 +27,7 @@ from predictive_drive.config import load_scenario
 from predictive_drive.core.signals import EXTERNAL
 from predictive_drive.errors import ConfigError
 from predictive_drive.readback import read_bag
-from procs import bag_bytes, end_all, ended, wait_until
+from procs import assert_placed, bag_bytes, end_all, ended, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dtc_im"
@@ -52,6 +52,27 @@ def test_the_example_imports_only_rclpy_the_messages_and_the_standard_library():
                 continue
             for name in names:
                 assert name.split(".")[0] in allowed | {"setuptools"}, (path, name)
+
+
+@pytest.mark.core
+def test_the_example_keeps_the_pace_habits_the_docs_give():
+    """docs/ros.md ("Your node's pace") names three habits; the example holds to them: the
+    events executor spun until a future with a finite timeout (never rclpy.spin_once, which
+    builds a wait set per message), the layouts' labels read once, one command message whose
+    data is an array of doubles. And bench keeps its row (ros_example_dtc_steps_per_s)."""
+    from predictive_drive.api.bench import GRAPH_RUNS
+
+    tree = ast.parse((EXAMPLE / "dtc_im" / "dtc_node.py").read_text())
+    calls = {
+        (ast.unparse(n.func), tuple(k.arg for k in n.keywords))
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Call)
+    }
+    assert ("EventsExecutor", ()) in calls
+    assert ("executor.spin_until_future_complete", ("timeout_sec",)) in calls
+    assert not any(name.endswith(("spin_once", ".spin")) for name, _ in calls)
+    assert ("array", ()) in calls and ("Float64MultiArray", ()) in calls
+    assert [g.key for g in GRAPH_RUNS if g.example_dtc] == ["ros_example_dtc_steps_per_s"]
 
 
 @pytest.fixture(scope="module")
@@ -518,6 +539,8 @@ def test_a_users_node_ends_when_the_launcher_is_killed_outright(command, tmp_pat
                    "the node did not start", timeout=30)  # fmt: skip
         wait_until(lambda: bag_bytes(tmp_path / "bag") > 100_000, "the run did not start",
                    timeout=60)  # fmt: skip
+        # placed as ours: on the plant's CPU, every thread SCHED_BATCH (was: left to the kernel)
+        assert_placed({"torque_controller": pid})
         p.kill()  # the launcher, SIGKILL: no chance to stop anything
         p.wait(timeout=10)
         wait_until(lambda: ended(pid),

@@ -23,12 +23,15 @@ from predictive_drive.api.run import run
 from predictive_drive.config import load_scenario
 from predictive_drive.errors import ConfigError
 from predictive_drive.readback import read_bag
-from predictive_drive.ros.placement import (
-    FASTDDS_PROFILES,
-    FASTDDS_PROFILES_ENV,
-    cpu_plan,
+from procs import (
+    assert_placed,
+    bag_bytes,
+    descendants,
+    ended,
+    kill_if_running,
+    signal_tree,
+    wait_until,
 )
-from procs import bag_bytes, descendants, ended, kill_if_running, signal_tree, wait_until
 
 pytestmark = pytest.mark.process
 
@@ -217,23 +220,6 @@ def test_live_param_set_rejects_bad_value_then_ctrl_c_leaves_readable_bag(cli_ru
         info.custom["outcome"],
     )
     assert stopped and int(stopped[1]) == tr.steps, info.custom["outcome"]  # as report counts
-
-
-def assert_placed(nodes: dict[str, int]) -> None:
-    """Every thread of every node process keeps to the CPU of the launcher's plan and runs under
-    SCHED_BATCH (the defaults), and the nodes run with the project's Fast DDS profile, which Fast
-    DDS parses without error."""
-    plan = cpu_plan("paired")
-    for name, pid in nodes.items():
-        for task in Path(f"/proc/{pid}/task").iterdir():
-            status = (task / "status").read_text()
-            allowed = re.search(r"Cpus_allowed_list:\s*(\S+)", status).group(1)
-            if plan:
-                assert allowed == plan[name], (name, task.name, allowed)
-            assert os.sched_getscheduler(int(task.name)) == os.SCHED_BATCH, (name, task.name)
-        environ = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
-        if not any(os.environ.get(k) for k in FASTDDS_PROFILES_ENV):  # else the user's wins
-            assert f"FASTRTPS_DEFAULT_PROFILES_FILE={FASTDDS_PROFILES}".encode() in environ
 
 
 def wait_recorded(bag: Path, chunks: int = 1, p: subprocess.Popen | None = None) -> None:
