@@ -219,6 +219,9 @@ def test_a_node_started_by_hand_joins_the_run(tmp_path):
         d = json.loads(stdout)
         assert d["strategy"] == EXTERNAL and d["steps"] == 1000
         assert math.isfinite(d["metrics"]["t_rmse"])
+        (node,) = d["own_nodes"]  # in the bag's metadata: started by hand, its parameters
+        assert node["name"] == "torque_controller" and node["command"] is None
+        assert node["parameters"]["motor.p"] == 1
     finally:
         end_all(started)
 
@@ -509,9 +512,10 @@ def test_the_speed_loop_started_as_an_external_command_gives_the_same_run(tmp_pa
     a = run("im_short", engine="ros", duration=0.05, out=tmp_path / "ext",
             external={"speed_pi": own})  # fmt: skip
     b = run("im_short", engine="ros", duration=0.05, out=tmp_path / "own")
-    ta, _ = read_bag(a.bag)
+    ta, info = read_bag(a.bag)
     tb, _ = read_bag(b.bag)
     assert a.strategy == b.strategy == "db_mptc"
+    assert [(n.name, n.command) for n in info.own_nodes] == [("speed_pi", own)]  # recorded too
     for rec in ("state", "reference"):
         assert np.array_equal(getattr(ta, rec), getattr(tb, rec), equal_nan=True), rec
     # the decisions alike (the command's last field, compute_ns, is measured; NaN where a
