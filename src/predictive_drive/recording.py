@@ -832,10 +832,11 @@ class RunRecorder:
         self._finished = True
         self._diagnose(self.live.flush())
         total = self.live.total() or {"k": -1.0, "t": self.last_t, "steps": 0.0}
-        # the steps the plant applied: those whose next state came (a command it refused, the
-        # last one of a stopped run, had its three records but never acted), as `report` counts
-        last_state = max(self.last_k["state"], self._state_written)
-        done = min(int(total["steps"]), max(last_state, 0))
+        # the steps as `report` counts them: whole, their next state and reference in too (a
+        # command the plant refused, the last one of a stopped run, had its three records but
+        # never acted)
+        after = min(max(self.last_k[r], self._state_written) for r in ("state", "reference"))
+        done = min(int(total["steps"]), max(after, 0))
         total["steps"] = float(done)
         total = {**total, "steps_planned": float(self.steps)}
         figures = (
