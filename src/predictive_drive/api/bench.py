@@ -158,8 +158,9 @@ HORIZON_RUNS = (
 class HorizonRate:
     """One law at one horizon: steps/s of the whole in-process loop (plant, speed loop,
     controller; no recording) over ``steps`` from the start, that as a share of the call's core
-    loop (``of_core``), the controller's compute time per step (median, 99th percentile) and
-    the nodes its search visited per step (mean)."""
+    loop (``of_core``) and of the core loop run right before and after it (``of_core_near``: the
+    machine drifts within a call), the controller's compute time per step (median, 99th
+    percentile) and the nodes its search visited per step (mean)."""
 
     strategy: str
     scenario: str
@@ -171,6 +172,8 @@ class HorizonRate:
     compute_us_p99: float
     nodes_mean: float
     decoder: str
+    core_near_steps_per_s: float = math.nan
+    of_core_near: float = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -332,7 +335,15 @@ def bench(
     if horizons:
         core = _median(rates)
         for strategy, scenario, ns in HORIZON_RUNS:
-            rows += [horizon_rate(strategy, scenario, n, horizon_steps, core) for n in ns]
+            for n in ns:
+                before = _core_rate(sc, steps)
+                h = horizon_rate(strategy, scenario, n, horizon_steps, core)
+                near = (before + _core_rate(sc, steps)) / 2
+                rows.append(
+                    dataclasses.replace(
+                        h, core_near_steps_per_s=near, of_core_near=h.steps_per_s / near
+                    )
+                )
     return Bench(
         steps=steps,
         core_steps_per_s=_median(rates),

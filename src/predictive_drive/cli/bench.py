@@ -80,7 +80,8 @@ def main(a: argparse.Namespace) -> int:
         decoder = f", {h.decoder} decoder" if h.decoder != "-" else ""
         print(
             f"{h.strategy} N={h.horizon:<2} ({h.scenario}, {h.steps} steps{decoder}): "
-            f"{h.steps_per_s:,.0f} steps/s ({h.of_core:.3f} of the core loop); compute "
+            f"{h.steps_per_s:,.0f} steps/s ({h.of_core:.3f} of the core loop's median, "
+            f"{h.of_core_near:.3f} of the core loop run right before and after it); compute "
             f"{h.compute_us_median:,.1f} µs median, {h.compute_us_p99:,.1f} µs p99; "
             f"{h.nodes_mean:,.0f} nodes/step"
         )
