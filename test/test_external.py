@@ -437,7 +437,10 @@ def test_command_0_may_take_longer_than_the_peer_timeout(tmp_path):
 def test_a_controller_that_dies_is_named_and_the_bag_closes(tmp_path):
     """The node exits (status 3) at step 100: the launcher names it, the recorder closes the
     bag with every state and reference up to step 100. The commands the recorder had not taken
-    when the node died went with it (its DDS writer is gone): the bag holds those it took."""
+    when the node died went with it (its DDS writer is gone): the bag holds those it took.
+    Its peers are told to finish quickly (SIGTERM): it left without closing its participant, so
+    their waits for its acknowledgements would have held the stop until Fast DDS's lease ran
+    out (SIGINT: the command took 22 s here, against 3 s)."""
     from mcap.reader import make_reader
 
     out = tmp_path / "dies"
@@ -445,6 +448,8 @@ def test_a_controller_that_dies_is_named_and_the_bag_closes(tmp_path):
     assert r.returncode == 2, r.stderr
     assert re.search(r"error: node torque_controller \(pid \d+\) exited with status 3; the run "
                      r"was stopped", r.stderr), r.stderr  # fmt: skip
+    for peer in ("plant", "speed_pi"):
+        assert (out / "logs" / f"{peer}.log").read_text().startswith("stopped by SIGTERM"), peer
     with open(next(out.glob("*.mcap")), "rb") as f:  # closed: summary and footer are there
         reader = make_reader(f)
         assert reader.get_summary() is not None

@@ -313,11 +313,14 @@ def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path, planne
             why, how, name = _cause(children, seen, early, own_early)
             write_stop_reason(children.logs, why)
             # a child killed outright never acknowledges what its peers sent it, nor does one
-            # that left before its last message: they are told to finish quickly (SIGTERM). One
-            # that failed left the graph cleanly: they finish as usual, so a recorder that was
-            # only slow gets everything
+            # that left before its last message, nor a user's node that failed (it may have
+            # left without closing its participant, os._exit or a crash: its readers stay
+            # matched until Fast DDS's lease runs out, 20 s, and the peers' waits for their
+            # acknowledgements held the stop that long): they are told to finish quickly
+            # (SIGTERM). One of ours that failed left the graph cleanly: they finish as usual,
+            # so a recorder that was only slow gets everything
             killed = any(p.returncode is not None and p.returncode < 0 for p in procs.values())
-            stop_processes(procs, urgent=killed or bool(own_early))
+            stop_processes(procs, urgent=killed or bool(own_early) or bool(early & children.own))
             status = bag_status(bag)
             if own_early and not early and status.steps >= planned:
                 return  # it had sent its last message after all: the run is whole
