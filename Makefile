@@ -2,6 +2,8 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
+# make test's pytest workers (pytest-xdist): the tests wait on processes much of the time
+TEST_WORKERS ?= 2
 STAMP  := $(VENV)/.installed
 
 .PHONY: setup run test test-core bench clean
@@ -23,7 +25,7 @@ test: setup
 	$(VENV)/bin/ruff check src test examples
 	$(VENV)/bin/ruff format --check src test examples
 	$(VENV)/bin/mypy --strict src/predictive_drive
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile test
 
 # the fast tier alone: no ROS, no node processes
 test-core: setup

@@ -42,7 +42,7 @@ setup(
         "sweep": ["pyarrow>=21,<27", "dask[distributed]>=2025.1,<2027"],
         # fast: direct_mpc's sphere decoder compiled (core/control/kernels.py; about 210 MB)
         "fast": ["numba>=0.60,<1"],
-        "test": ["pytest>=8,<10", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
+        "test": ["pytest>=8,<10", "pytest-xdist>=3.5,<4", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",
                  "colcon-python-setup-py>=0.2.8,<0.3", "ruff>=0.6,<1", "mypy>=1.10,<3",
                  "types-PyYAML>=6,<7", "types-tqdm>=4.60,<5",

@@ -2,19 +2,54 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
-import random
+import tempfile
 import warnings
+from pathlib import Path
 
 import pytest
 
-# before anything imports rclpy: a domain of our own per test session, loopback only
-os.environ.setdefault("ROS_DOMAIN_ID", str(random.Random(os.getpid()).randint(100, 199)))
+
+def _own_domain() -> int:
+    """A ROS domain this test process holds alone while it runs: flock'ed in 101..199 (the
+    runs' own isolated domains are 1..100), so pytest-xdist's workers and other test sessions on
+    the machine never share one. The lock file stays open until the process exits."""
+    folder = Path(tempfile.gettempdir()) / "predictive_drive_test_domains"
+    folder.mkdir(mode=0o1777, exist_ok=True)
+    for d in range(101, 200):
+        try:
+            fd = os.open(folder / f"{d}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
+        except PermissionError:
+            continue  # another user's lock file: their domain
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        return d  # fd deliberately left open: the lock lasts as long as this process
+    raise RuntimeError(f"every test domain 101..199 is held (lock files in {folder})")
+
+
+# before anything imports rclpy: a domain of our own per test process, loopback only
+os.environ["ROS_DOMAIN_ID"] = str(_own_domain())
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from installs import colcon_install, wheel_install  # noqa: E402
 from predictive_drive.config import load_scenario  # noqa: E402
 from predictive_drive.core.runner import run_inprocess  # noqa: E402
+
+# pytest-xdist (make test runs two workers with --dist loadfile: a file's tests stay on one
+# worker, so its module fixtures are made once). The longest files go first, so that the
+# workers finish together. (Not loadgroup: xdist 3.8 under pytest 9 schedules by item.nodeid,
+# which no longer carries the group its hook appends to _nodeid.)
+LONGEST_FIRST = ["test_external.py", "test_graph.py", "test_install.py", "test_replay.py",
+                 "test_readme.py"]  # fmt: skip
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest in order
 
 
 @pytest.fixture(scope="session")

@@ -71,6 +71,8 @@ ALONGSIDE = {"predictive-drive run im_paper --strategy mptc": r"graph on ROS_DOM
 NOT_RUN = {
     # README.md
     "make test": "the suite this test is part of (CI runs it: .ci/run)",
+    "make test TEST_WORKERS=1": "the same suite in one pytest worker",
+    "time .ci/run": "the measurement of the README's timing (CI itself: make test)",
     'pip install ".[ros,figures]"': "test_install.py installs the wheel into a fresh venv",
     "ros2 run predictive_drive predictive-drive VERB ...": "no ros2 CLI from PyPI; "
     "test_install.py runs every verb from the colcon install's lib/predictive_drive",
@@ -183,7 +185,6 @@ NOT_RUN = {
     "predictive-drive bench --graph ros,ros_example_dtc": "the command above, printed as text",
     # how the timings the pages give were measured (the commands themselves run above)
     "time make run": "the measurement of the README's timing (make run runs here, shortened)",
-    "time make test": "the measurement of the README's timing (make test: CI, .ci/run)",
     "time predictive-drive reproduce SCENARIO": "the measurement of reproduction.md's timings",
     "time predictive-drive reproduce im_paper": "the measurement of the README's timing",
     "predictive-drive run im_paper --strategy db_mptc": "what the README's make run runs",
