@@ -169,6 +169,29 @@ def test_ctrl_c_during_a_recorded_sweep_closes_the_cut_bags_and_says_so(tmp_path
 
 
 @pytest.mark.core
+def test_a_stop_waits_for_a_worker_still_starting(tmp_path):
+    """Ctrl-C while a local worker is still starting (its SIGTERM handler not yet in): it is told
+    to stop once the handler is in, so its case closes its bag or never begins (was: SIGTERM at
+    once killed it, the pool broke, and a CI run under load ended a sibling worker outright
+    while it closed its bag)."""
+    from predictive_drive.api.sweep import INTERRUPTED, NOT_RUN, _LocalPool, _stop_local, run_case
+    from predictive_drive.readback import bag_status
+
+    path = resolve_scenario_path("im_short")
+    bag = tmp_path / "bag"
+    case = Case("db_mptc", bag=str(bag), duration=60.0)
+    pool = _LocalPool(1)
+    before = set(descendants(os.getpid()))
+    fut = pool.submit(run_case, path.read_text(), str(path), case)
+    done: dict[int, Row] = {}
+    _stop_local(pool, {fut: 0}, done, [case])  # at once: the worker is still importing
+    assert workers_left(before) == []
+    assert done[0].error in (INTERRUPTED, NOT_RUN), done[0].error
+    if bag.exists():
+        assert bag_status(bag).closed
+
+
+@pytest.mark.core
 def test_after_ctrl_c_a_complete_bag_is_a_row_and_an_unclosed_one_is_removed(tmp_path):
     """What the sweep makes of the bags of the runs whose rows it did not get: a bag holding the
     whole run is its row (the run ended as Ctrl-C came); one its writer could not close is

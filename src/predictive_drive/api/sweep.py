@@ -24,7 +24,7 @@ import shutil
 import signal
 import time
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -186,11 +186,14 @@ def run_case(
     global _in_case
     t0 = time.perf_counter()
     row = Row(case.strategy, dict(case.settings), bag=case.bag)
-    if _stopping:  # the sweep was interrupted before this case began: it never runs
-        row.error = NOT_RUN
-        return row
+    # in a case before the look at _stopping: a stop that comes between the two interrupts the
+    # case (was: it came after the look and before this flag, and the case ran on, 60 s, until
+    # the sweep ended its worker outright and removed its bag)
     _in_case = True
     try:
+        if _stopping:  # the sweep was interrupted before this case began: it never runs
+            row.error = NOT_RUN
+            return row
         sc = load_scenario_text(text, where).with_strategy(case.strategy)
         if case.duration is not None or duration is not None:
             sc = sc.with_duration(case.duration if case.duration is not None else duration)
@@ -237,11 +240,24 @@ def _stop_case(signum: int, frame: object) -> None:
         interrupts.interrupt(signum, frame)
 
 
-def _quiet_worker() -> None:
+def _quiet_worker(ready: Any) -> None:
     """A local worker leaves Ctrl-C to the sweep, which keeps what is done and stops it (by
-    SIGTERM: :func:`_stop_case`)."""
+    SIGTERM: :func:`_stop_case`); it says when that handler is in (its PID into ``ready``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _stop_case)
+    ready.put(os.getpid())
+
+
+class _LocalPool(cf.ProcessPoolExecutor):
+    """The local cores' processes; ``ready`` holds the PIDs of those whose SIGTERM handler is in
+    (see :func:`_stop_local`)."""
+
+    def __init__(self, workers: int) -> None:
+        # forkserver, not fork: the calling process may hold threads (rclpy, a live view, a
+        # Dask client) whose locks a forked child would inherit held
+        ctx = multiprocessing.get_context("forkserver")
+        self.ready = ctx.SimpleQueue()
+        super().__init__(workers, mp_context=ctx, initializer=_quiet_worker, initargs=(self.ready,))
 
 
 @contextmanager
@@ -252,10 +268,7 @@ def _executor(scheduler: str | None, jobs: int | None, cases: int) -> Iterator[t
         if jobs is not None and jobs < 1:
             raise ConfigError(f"--jobs {jobs}: the number of local processes must be at least 1")
         workers = max(1, min(cases, jobs or os.cpu_count() or 1))
-        # forkserver, not fork: the calling process may hold threads (rclpy, a live view, a
-        # Dask client) whose locks a forked child would inherit held
-        ctx = multiprocessing.get_context("forkserver")
-        pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_quiet_worker)
+        pool = _LocalPool(workers)
         try:
             yield pool, f"local ({workers} process{'es' if workers > 1 else ''})"
         finally:
@@ -321,7 +334,7 @@ def run_cases(
             interrupted = True
             for fut in futures:
                 fut.cancel()
-            if scheduler is None:
+            if isinstance(pool, _LocalPool):
                 _stop_local(pool, {f: i for f, i in futures.items() if i not in done}, done, cases)
     rows, cut = _settle(done, cases) if interrupted else ([done[i] for i in sorted(done)], [])
     return SweepResult(
@@ -346,30 +359,44 @@ def _where(path: str, case: Case) -> str:
 
 
 def _stop_local(
-    pool: cf.ProcessPoolExecutor,
+    pool: _LocalPool,
     running: dict[cf.Future[Row], int],
     done: dict[int, Row],
     cases: Sequence[Case],
 ) -> None:
-    """Stop the local workers: each is told to (SIGTERM, see :func:`_stop_case`), so the runs
-    in flight end where they are and close their bags, and ``done`` takes their rows; those
-    still running after :data:`STOP_WAIT` s (or at a second Ctrl-C) are ended outright."""
-    workers = [p for p in getattr(pool, "_processes", {}).values() if p.is_alive()]
-    for p in workers:
-        try:
-            os.kill(p.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
+    """Stop the local workers: each is told to (SIGTERM, see :func:`_stop_case`) once its
+    handler is in, so the runs in flight end where they are and close their bags, and ``done``
+    takes their rows; those still running after :data:`STOP_WAIT` s (or at a second Ctrl-C) are
+    ended outright. (A worker still starting died of a SIGTERM sent at once, and the broken pool
+    ended the wait for the others: one was killed while it closed its bag.)"""
+    deadline = time.monotonic() + STOP_WAIT
+    ready: set[int] = set()
+    told: set[int] = set()
+    left = dict(running)
     try:
-        for fut in cf.as_completed(running, timeout=STOP_WAIT):
-            if not fut.cancelled():
-                done[running[fut]] = _row_of(fut, cases[running[fut]])
-    except (cf.TimeoutError, KeyboardInterrupt):
+        while left and time.monotonic() < deadline:
+            while not pool.ready.empty():
+                ready.add(pool.ready.get())
+            for p in _workers(pool):
+                if p.pid in ready and p.pid not in told:
+                    told.add(p.pid)
+                    with suppress(ProcessLookupError):
+                        os.kill(p.pid, signal.SIGTERM)
+            finished, _ = cf.wait(left, timeout=0.05)
+            for fut in finished:
+                i = left.pop(fut)
+                if not fut.cancelled():
+                    done[i] = _row_of(fut, cases[i])
+    except KeyboardInterrupt:
         pass  # ended outright below: their bags are seen to in _settle
-    for p in workers:
-        if p.is_alive():
-            p.kill()
+    for p in _workers(pool):
+        p.kill()
     pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _workers(pool: _LocalPool) -> list[Any]:
+    """The pool's worker processes still alive."""
+    return [p for p in getattr(pool, "_processes", {}).values() if p.is_alive()]
 
 
 def _settle(done: dict[int, Row], cases: Sequence[Case]) -> tuple[list[Row], list[str]]:
