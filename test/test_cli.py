@@ -260,3 +260,16 @@ def test_a_missing_package_is_one_line_naming_it_and_how_to_install_it(
     assert r.returncode == 2, r.stderr
     (line,) = r.stderr.splitlines()  # one line, no traceback
     assert line.startswith("predictive-drive: error: ") and says in line, line
+
+
+@pytest.mark.core
+def test_the_printout_reads_dash_for_what_a_controller_cannot_have(capsys, tmp_path):
+    """A FOC run picks no vector and reports no t_u: deadbeat reads '-' without its unit and no
+    vectors line is printed (was: 'deadbeat 0.00 %', 'vectors V0 nan% ...')."""
+    code, out, _ = run_cli(
+        ["run", "ipmsm_mtpa_short", "--engine", "inprocess", "--duration", "0.02", "--out",
+         str(tmp_path / "foc")], capsys,
+    )  # fmt: skip
+    assert code == 0
+    assert re.search(r"^  deadbeat +-   steps with", out, re.MULTILINE), out
+    assert "nan" not in out.lower() and "- %" not in out and "vectors" not in out, out

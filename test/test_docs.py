@@ -136,3 +136,18 @@ def test_the_readme_is_short_and_opens_with_its_two_commands():
     makefile = (ROOT / "Makefile").read_text()
     assert re.search(r"^run: ", makefile, re.M) and re.search(r"^test: ", makefile, re.M)
     assert "make test" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_the_contract_says_how_a_node_ends_what_t_holds_and_which_python_runs_it():
+    """docs/ros.md's contract for a controller of one's own keeps what the launcher and the
+    plant hold a node to: the last state is not answered, the publisher's messages acknowledged
+    before exiting, ``t`` copied from the state, and the venv's interpreter for the commands."""
+    text = " ".join((ROOT / "docs" / "ros.md").read_text().split())
+    for said in (
+        "it is not answered",
+        "`Publisher.wait_for_all_acked()`",
+        "its `t` the `t` of",
+        "A command for another step or with another `t`",
+        ".venv/bin/python examples/dtc_im/dtc_im/dtc_node.py",
+    ):
+        assert said in text, said

@@ -27,7 +27,7 @@ from predictive_drive.config import load_scenario
 from predictive_drive.core.signals import EXTERNAL
 from predictive_drive.errors import ConfigError
 from predictive_drive.readback import read_bag
-from procs import assert_placed, bag_bytes, end_all, ended, wait_until
+from procs import assert_placed, bag_bytes, end_all, ended, kill_if_running, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dtc_im"
@@ -246,6 +246,11 @@ BAD_CASES = [
         "(expected one distinct label per value)",
     ),  # fmt: skip
     (
+        "no_layout",
+        "Float64MultiArray layout: 5 values under the labels '' (expected one distinct label per "
+        "value)",
+    ),  # fmt: skip
+    (
         "future_commands",
         "field 'k' = 101: the command for another step (the plant waits for step 100)",
     ),  # fmt: skip
@@ -354,6 +359,29 @@ def test_a_controller_that_does_not_answer_is_named_at_once(command, options, sa
             "changes it)" in r.stderr  # fmt: skip
 
 
+@pytest.mark.core
+def test_a_users_node_that_ignores_sigterm_is_killed_by_end_own_nodes(monkeypatch, capsys):
+    """end_own_nodes itself escalates: a node that ignores SIGTERM is SIGKILLed and said to be
+    (the graph test below passes without it: the launcher's own stop kills the node after)."""
+    from predictive_drive.ros import processes
+
+    monkeypatch.setattr(processes, "OWN_NODE_GRACE", 0.3)
+    code = (
+        "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+        "print(1, flush=True); time.sleep(60)"
+    )
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "1"  # its handler is in
+        processes.end_own_nodes({"torque_controller": p}, after="the run's last step")
+        assert p.wait(timeout=10) == -signal.SIGKILL
+        said = capsys.readouterr().err
+        assert f"your torque_controller (pid {p.pid}) has not exited 0.3 s after the run's last " \
+            "step; it ignored SIGTERM: killing it (SIGKILL)" in said  # fmt: skip
+    finally:
+        kill_if_running(p)
+
+
 @pytest.mark.process
 @pytest.mark.parametrize("mode", ["no_exit", "stubborn"])
 def test_a_controller_that_does_not_exit_after_its_last_command_is_ended(mode, tmp_path):
@@ -402,6 +430,23 @@ def test_replay_into_a_controller_refuses_what_the_plant_refuses(mode, said, tmp
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert said in r.stderr, r.stderr
     assert read_bag(out)[0].steps == 100
+
+
+@pytest.mark.process
+def test_replay_into_ends_a_node_that_does_not_exit_after_its_last_command(tmp_path):
+    """replay --into, as the launcher: the replay completes and the node that stays is ended,
+    and it says so."""
+    bag = tmp_path / "bag"
+    run_inprocess_to_bag(load_scenario("im_short", duration=0.02), bag)
+    r = subprocess.run(
+        [*CLI, "replay", str(bag), "--into", f"torque_controller={BAD} no_exit 0", "--out",
+         str(tmp_path / "again")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert re.search(r"your torque_controller \(pid \d+\) has not exited 5 s after its last "
+                     r"command: ending it \(SIGTERM\)", r.stderr), r.stderr  # fmt: skip
+    assert read_bag(tmp_path / "again")[0].steps == 400
 
 
 def _run_bad(mode: str, out: Path) -> subprocess.CompletedProcess[str]:

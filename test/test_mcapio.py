@@ -470,6 +470,37 @@ def test_a_malformed_command_stream_never_crashes_the_recorder_or_costs_a_valid_
     assert info.custom["outcome"].startswith("ERROR: stopped by the test: 100 of 400 steps")
 
 
+def test_the_outcome_counts_the_steps_as_report_does(tmp_path):
+    """A run stopped between state k+1 and reference k+1 (a Ctrl-C can land there): step k is
+    not whole, and the outcome's count is the trace's (was: one more, counted by states alone:
+    45874 against 45873 in a graph test)."""
+    from predictive_drive.bag import BagWriter
+    from predictive_drive.codec import CODECS
+    from predictive_drive.config import load_scenario
+    from predictive_drive.core.control import strategy_names
+    from predictive_drive.core.runner import run_inprocess
+    from predictive_drive.readback import read_bag
+    from predictive_drive.recording import RunRecorder, bag_info
+
+    sc = load_scenario("im_short", strategy="mptc", duration=0.01)
+    tr = run_inprocess(sc)
+    messages: list[tuple[str, bytes]] = []
+    for k in range(50):  # state k, reference k, command k
+        messages.append(("state", CODECS["state"].encode(tuple(tr.state[k]))))
+        messages.append(("reference", CODECS["reference"].encode(tr.reference[k])))
+        messages.append(("command", CODECS["command"].encode(tuple(tr.command[k]))))
+    messages.append(("state", CODECS["state"].encode(tuple(tr.state[50]))))  # no reference 50
+    with BagWriter(tmp_path / "bag", info=bag_info(sc, "ros")) as w:
+        rec = RunRecorder(w, ts=sc.ts, steps=tr.steps, torque_limit=sc.speed_pi.torque_limit,
+                          strategy_names=strategy_names(sc.family), record_tools=False)  # fmt: skip
+        rec.take(messages)
+        rec.flush()
+        rec.finish("interrupted")
+    trace, info = read_bag(tmp_path / "bag")
+    assert trace.steps == 49
+    assert info.custom["outcome"].startswith(f"ERROR: interrupted: 49 of {tr.steps} steps")
+
+
 def test_read_bag_decodes_what_the_mcap_library_decodes(tmp_path):
     """The per-step topics gathered by numpy equal each message decoded by the library's reader
     and the codec, one by one."""
