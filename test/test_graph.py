@@ -386,6 +386,22 @@ def composed_run(tmp_path):
         p.wait(timeout=10)
 
 
+def _waiting_at_step_500(composed_run, domain: int, bag: Path):
+    """A composed graph (im_short, mptc, 0.05 s, recorded to ``bag``) whose plant waits at the
+    strategy switch scheduled at step 500: the process, once it says so, and its parameters."""
+    common = {"duration": 0.05, "peer_timeout": 10.0, "switch_steps": [500]}
+    params = {
+        "plant": dict(common),
+        "torque_controller": {**common, "strategy": "mptc"},
+        "speed_pi": {"duration": 0.05},
+        "metrics_logger": {"duration": 0.05, "bag": str(bag), "strategy": "mptc"},
+    }
+    p = composed_run(params, domain)
+    said = read_until(p, "waits for the strategy switch", stream="stdout")
+    assert "state 500 waits for the strategy switch scheduled at step 500" in said, said
+    return p, params
+
+
 def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
     composed_run, tmp_path
 ):
@@ -394,17 +410,8 @@ def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
     ends the run after peer_timeout, saying why."""
     from predictive_drive.ros.processes import isolated_domain
 
-    common = {"duration": 0.05, "peer_timeout": 10.0, "switch_steps": [500]}
     with isolated_domain() as domain:
-        params = {
-            "plant": dict(common),
-            "torque_controller": {**common, "strategy": "mptc"},
-            "speed_pi": {"duration": 0.05},
-            "metrics_logger": {"duration": 0.05, "bag": str(tmp_path / "late"), "strategy": "mptc"},
-        }
-        p = composed_run(params, domain)
-        said = read_until(p, "waits for the strategy switch", stream="stdout")
-        assert "state 500 waits for the strategy switch scheduled at step 500" in said, said
+        p, params = _waiting_at_step_500(composed_run, domain, tmp_path / "late")
         assert p.poll() is None, p.communicate()[0]  # waiting at step 500
         setter = subprocess.run(
             [*CLI, "param", "set", "torque_controller", "strategy", "db_mptc"],
@@ -826,18 +833,9 @@ def test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step(compos
     from predictive_drive.api.report import evaluate, strategies_of
     from predictive_drive.ros.processes import isolated_domain
 
-    common = {"duration": 0.05, "peer_timeout": 10.0, "switch_steps": [500]}
     with isolated_domain() as domain:
         env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
-        params = {
-            "plant": dict(common),
-            "torque_controller": {**common, "strategy": "mptc"},
-            "speed_pi": {"duration": 0.05},
-            "metrics_logger": {"duration": 0.05, "bag": str(tmp_path / "b"), "strategy": "mptc"},
-        }
-        p = composed_run(params, domain)
-        said = read_until(p, "waits for the strategy switch", stream="stdout")
-        assert "state 500 waits" in said, said
+        p, _ = _waiting_at_step_500(composed_run, domain, tmp_path / "b")
         bad = subprocess.run([*CLI, "param", "set", "torque_controller", "horizon", "9"],
                              env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
         # rclpy's own range check (the descriptor's IntegerRange) answers first
