@@ -2,37 +2,19 @@
 
 from __future__ import annotations
 
-import fcntl
+import contextlib
 import os
-import tempfile
 import warnings
-from pathlib import Path
 
 import pytest
 
+from predictive_drive.ros.processes import isolated_domain
 
-def _own_domain() -> int:
-    """A ROS domain this test process holds alone while it runs: flock'ed in 101..199 (the
-    runs' own isolated domains are 1..100), so pytest-xdist's workers and other test sessions on
-    the machine never share one. The lock file stays open until the process exits."""
-    folder = Path(tempfile.gettempdir()) / "predictive_drive_test_domains"
-    folder.mkdir(mode=0o1777, exist_ok=True)
-    for d in range(101, 200):
-        try:
-            fd = os.open(folder / f"{d}.lock", os.O_RDONLY | os.O_CREAT, 0o666)
-        except PermissionError:
-            continue  # another user's lock file: their domain
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            continue
-        return d  # fd deliberately left open: the lock lasts as long as this process
-    raise RuntimeError(f"every test domain 101..199 is held (lock files in {folder})")
-
-
-# before anything imports rclpy: a domain of our own per test process, loopback only
-os.environ["ROS_DOMAIN_ID"] = str(_own_domain())
+# before anything imports rclpy: a domain of this test process's own while it runs, loopback
+# only. Flock'ed in 101..199 (the runs' own are 1..100), so pytest-xdist's workers and other test
+# sessions on the machine never share one (the workers inherited the controller's before)
+_HELD = contextlib.ExitStack()  # never closed: the lock lasts as long as this process
+os.environ["ROS_DOMAIN_ID"] = str(_HELD.enter_context(isolated_domain(range(101, 200))))
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 
 from installs import colcon_install, wheel_install  # noqa: E402

@@ -50,18 +50,19 @@ LOCK_DIR = Path(tempfile.gettempdir()) / "predictive_drive_domains"
 
 
 @contextmanager
-def isolated_domain() -> Iterator[int]:
-    """A ROS_DOMAIN_ID no other predictive_drive run on this machine holds (flock'ed). The lock
-    folder and files are open to every user (mode 1777 and 0666), so a second user's runs take
-    other domains instead of failing on a lock file the first one created."""
+def isolated_domain(domains: range = DOMAIN_RANGE) -> Iterator[int]:
+    """A ROS_DOMAIN_ID of ``domains`` no other predictive_drive run (or test process) on this
+    machine holds (flock'ed). The lock folder and files are open to every user (mode 1777 and
+    0666), so a second user's runs take other domains instead of failing on a lock file the
+    first one created."""
     LOCK_DIR.mkdir(exist_ok=True)
     try:
         os.chmod(LOCK_DIR, 0o1777)  # mkdir's mode is cut by the umask; an older one is mended
     except PermissionError:
         pass  # another user's folder: theirs to open
-    start = os.getpid() % len(DOMAIN_RANGE)
-    for i in range(len(DOMAIN_RANGE)):
-        d = DOMAIN_RANGE[(start + i) % len(DOMAIN_RANGE)]
+    start = os.getpid() % len(domains)
+    for i in range(len(domains)):
+        d = domains[(start + i) % len(domains)]
         path = LOCK_DIR / f"{d}.lock"
         try:
             fd = os.open(path, os.O_RDONLY | os.O_CREAT, 0o666)  # flock needs no write access
@@ -82,7 +83,10 @@ def isolated_domain() -> Iterator[int]:
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
         return
-    raise GraphError("no free ROS domain id: 100 predictive_drive runs at once?")
+    raise GraphError(
+        f"no free ROS domain id in {domains.start}..{domains.stop - 1}: "
+        f"{len(domains)} predictive_drive runs at once?"
+    )
 
 
 def domains_in_use() -> list[int]:
