@@ -212,6 +212,27 @@ def test_a_press_that_answers_the_stop_line_moves_the_stop_on(tmp_path, monkeypa
     assert said.getvalue().splitlines()[1] == processes.AGAIN  # the press was acted on
 
 
+def test_a_node_that_hangs_at_its_exit_after_closing_is_ended_by_sigalrm():
+    """The alarm set by closing() lasts through the process's exit: a teardown that hangs after
+    the close (here an exit handler; in a run, rclpy's or Fast DDS's) ends by SIGALRM (was: the
+    alarm was cleared at the block's end, and a node left by its launcher hung for minutes)."""
+    code = (
+        "import atexit, time\n"
+        "from predictive_drive.ros import node_base\n"
+        "node_base.CLOSE_TIMEOUT = 1\n"
+        "atexit.register(time.sleep, 30)\n"
+        "with node_base.closing():\n"
+        "    print('closing', flush=True)\n"
+    )
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE)
+    try:
+        assert p.stdout.readline() == b"closing\n"
+        p.wait(timeout=20)
+    finally:
+        kill_if_running(p)
+    assert p.returncode == -signal.SIGALRM
+
+
 def test_a_closing_node_that_hangs_is_ended_by_sigalrm(tmp_path):
     """Without a launcher to escalate, a node whose closing hangs ends after CLOSE_TIMEOUT (set
     to 1 s here) by SIGALRM; Ctrl-C and SIGTERM during the closing do not cut it short."""

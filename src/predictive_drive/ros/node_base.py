@@ -388,14 +388,14 @@ def spin_main(
 def closing() -> Iterator[None]:
     """The process is closing: a further SIGINT/SIGTERM must not interrupt the closing of the
     bag. The launcher still escalates to SIGKILL if closing hangs; without a launcher (or with
-    one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT."""
+    one that died) SIGALRM ends a close that takes longer than CLOSE_TIMEOUT. The alarm stays
+    set after the block, through the process's exit (a node process only exits after it): a
+    teardown of rclpy or Fast DDS that hangs at the interpreter's exit is ended too (one node,
+    its launcher gone after a third Ctrl-C, sat 7 minutes in a futex there)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     signal.alarm(CLOSE_TIMEOUT)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
+    yield
 
 
 #: local deliveries between executor polls (~280 steps of the drive graph; a poll costs about a
