@@ -187,8 +187,9 @@ def test_a_stop_waits_for_a_worker_still_starting(tmp_path):
     _stop_local(pool, {fut: 0}, done, [case])  # at once: the worker is still importing
     assert workers_left(before) == []
     assert done[0].error in (INTERRUPTED, NOT_RUN), done[0].error
-    if bag.exists():
-        assert bag_status(bag).closed
+    if bag.exists():  # closed with what it holds, or stopped in its opening: no whole step,
+        status = bag_status(bag)  # which the sweep removes (_settle: 'no whole step')
+        assert status.closed or not status.readable, status
 
 
 @pytest.mark.core
