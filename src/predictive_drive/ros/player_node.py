@@ -233,7 +233,9 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
                         node.changed = False
                         clock.set(node.rate, node.paused)
                     if clock.paused or clock.now() < due or wall >= next_service:
-                        wait = 0.0 if clock.paused else (due - clock.now()) / clock.rate
+                        # paused: wait for a parameter set (it wakes the spin) a service
+                        # period at a time; a zero timeout kept a core ~35 % busy
+                        wait = SERVICE_PERIOD if clock.paused else (due - clock.now()) / clock.rate
                         ex.spin_once(timeout_sec=min(max(wait, 0.0), SERVICE_PERIOD))
                         next_service = time.perf_counter() + SERVICE_PERIOD
                     if node.clock_pub is not None and wall >= next_clock and not clock.paused:
