@@ -11,6 +11,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -231,6 +232,36 @@ def test_a_node_that_hangs_at_its_exit_after_closing_is_ended_by_sigalrm():
     finally:
         kill_if_running(p)
     assert p.returncode == -signal.SIGALRM
+
+
+def test_a_signal_inside_the_stop_handler_does_not_hang_the_node(tmp_path):
+    """A second signal that arrives while a node handles its first (a double Ctrl-C, the
+    launcher's SIGTERM after the terminal's SIGINT) runs the handler again inside itself. Here
+    every line the handler executes sends another (test/reentrant_signals.py): the node still
+    ends. Was: the handler set a threading.Event, whose lock the nested call waited for forever
+    (a torque controller left in a futex for minutes, its run's test failing after 90 s)."""
+    import os
+
+    from predictive_drive.config import resolve_scenario_path
+    from predictive_drive.ros.placement import LAUNCHER_ENV, ros_env
+
+    env = ros_env(int(os.environ["ROS_DOMAIN_ID"]), log_dir=tmp_path)
+    env.pop(LAUNCHER_ENV)  # a node on its own: no launcher to watch
+    script = str(Path(__file__).with_name("reentrant_signals.py"))
+    scenario = str(resolve_scenario_path("im_short"))
+    p = subprocess.Popen(
+        [sys.executable, script, "torque_controller_node", "--ros-args", "--params-file",
+         scenario],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True,
+    )  # fmt: skip
+    try:
+        assert p.stdout.readline() == b"handlers installed\n"
+        time.sleep(0.5)  # in its spin loop, waiting for peers that never come
+        p.send_signal(signal.SIGINT)
+        p.wait(timeout=30)
+    finally:
+        kill_if_running(p)
+    assert p.returncode == 0
 
 
 def test_a_closing_node_that_hangs_is_ended_by_sigalrm(tmp_path):

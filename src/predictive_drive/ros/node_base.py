@@ -9,7 +9,6 @@ import math
 import os
 import signal
 import sys
-import threading
 import time
 import typing
 from collections.abc import Callable, Collection, Iterator
@@ -54,13 +53,39 @@ CLOSE_TIMEOUT = 60
 #: s the nodes may spend, once the run ends, on messages still in flight: publishers wait for
 #: their readers' acknowledgements, the logger takes what still arrives
 FINISH_TIMEOUT = 20.0
-#: set by SIGINT / SIGTERM: the node ends its run and closes (rclpy's own handlers are not
-#: installed: they would shut the context down before the logger has taken what is in flight)
-STOP = threading.Event()
-#: the signal that set :data:`STOP` (0: none). SIGINT asks a node to finish what is in flight
-#: (its publishers wait for every acknowledgement); SIGTERM asks it to finish quickly: a peer is
-#: gone, so acknowledgements it owes will never come (the logger still takes what is in flight)
-STOPPED_BY = [0]
+
+
+class StopFlag:
+    """Set by SIGINT / SIGTERM: the node ends its run and closes (rclpy's own handlers are not
+    installed: they would shut the context down before the logger has taken what is in flight).
+
+    A plain attribute, no lock: a signal handler runs between two bytecodes of the main thread,
+    so a second signal can run it again inside the first call. ``threading.Event.set`` takes a
+    lock there, and the nested call waited forever for the lock its outer call held (a torque
+    controller sat in a futex after a double Ctrl-C). The spin loop looks at the flag at least
+    every 0.1 s, so nothing needs waking."""
+
+    __slots__ = ("signum",)
+
+    def __init__(self) -> None:
+        #: the signal that set it (0: none). SIGINT asks a node to finish what is in flight
+        #: (its publishers wait for every acknowledgement); SIGTERM asks it to finish quickly: a
+        #: peer is gone, so acknowledgements it owes will never come (the logger still takes
+        #: what is in flight). The first signal decides.
+        self.signum = 0
+
+    def set(self, signum: int = signal.SIGINT) -> None:
+        if not self.signum:
+            self.signum = signum
+
+    def is_set(self) -> bool:
+        return self.signum != 0
+
+    def clear(self) -> None:
+        self.signum = 0
+
+
+STOP = StopFlag()
 #: s a node stopped by SIGTERM waits for acknowledgements before it goes
 QUICK_FINISH = 1.0
 #: the line a node run by the project's launcher writes to its log when a signal stopped it
@@ -345,8 +370,7 @@ def spin_main(
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
 
     def stop(signum: int, _frame: object) -> None:
-        STOPPED_BY[0] = STOPPED_BY[0] or signum
-        STOP.set()
+        STOP.set(signum)  # nothing else: see StopFlag
 
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, stop)
@@ -363,13 +387,13 @@ def spin_main(
         code = 2
     finally:
         with closing():
-            urgent = STOPPED_BY[0] == signal.SIGTERM
+            urgent = STOP.signum == signal.SIGTERM
             deadline = time.monotonic() + (QUICK_FINISH if urgent else FINISH_TIMEOUT)
             for n in sorted(nodes, key=lambda n: not isinstance(n, WatchedNode)):
                 n.finish(lambda t: _spin(ex, bus, t), deadline)
-            stopped_mid_run = STOPPED_BY[0] and not all(n.finished for n in nodes)
+            stopped_mid_run = STOP.is_set() and not all(n.finished for n in nodes)
             if stopped_mid_run and launcher_pid():
-                name = signal.Signals(STOPPED_BY[0]).name
+                name = signal.Signals(STOP.signum).name
                 step = max((n.last_step for n in nodes), default=-1)
                 print(STOPPED_LINE.format(signal=name, step=step), file=sys.stderr, flush=True)
             for n in nodes:
