@@ -415,3 +415,72 @@ def test_ctrl_c_at_any_moment_is_an_exit_status_not_a_traceback(tmp_path):
         _, err = p.communicate(timeout=60)
         assert "Traceback" not in err and "KeyboardInterrupt" not in err, (delay, err)
         assert p.returncode == 130, (delay, p.returncode, err)
+
+
+@pytest.fixture
+def unwritable(tmp_path):
+    """A folder nothing can be written into, for root too (root passes every permission bit: a
+    folder under /proc, where even root makes no file)."""
+    if os.geteuid() == 0:
+        return Path("/proc/predictive_drive_test")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(stat.S_IRUSR | stat.S_IXUSR)
+    return ro / "out"
+
+
+def _refused_before_the_work(call, words, monkeypatch):
+    """``call()`` fails with ``words`` before any run starts (a run would be the work lost)."""
+    import predictive_drive.api.sweep as sweep_api
+
+    def no_run(*a, **kw):
+        raise AssertionError("a run started before the output was checked")
+
+    monkeypatch.setattr(sweep_api, "run_case", no_run)
+    monkeypatch.setattr(sweep_api, "run_cases", no_run)
+    with pytest.raises(ConfigError) as e:
+        call()
+    assert words in str(e.value), e.value
+
+
+@pytest.mark.parametrize("where", ["unwritable", "below a file"])
+@pytest.mark.parametrize(
+    "verb", ["reproduce --figures", "reproduce --bags", "sweep --figures", "sweep --out",
+             "report --figures", "compare --figures", "layout --out"],
+)  # fmt: skip
+def test_every_output_is_checked_before_the_work(verb, where, unwritable, tmp_path, monkeypatch):
+    """An output folder that cannot be written is refused before anything runs, naming the
+    option, the path and why (was: `reproduce fronts --figures RO/figs` ran all 31 runs, then
+    'Read-only file system', no table; `layout --out` under a file was a traceback)."""
+    from predictive_drive.api.compare import compare
+    from predictive_drive.api.report import report
+    from predictive_drive.api.reproduce import reproduce
+    from predictive_drive.api.sweep import sweep
+    from predictive_drive.reports.layout import write_layout
+
+    if where == "below a file":
+        (tmp_path / "f").write_text("x")
+        target, why = tmp_path / "f" / "out", f"{tmp_path / 'f'} is a file, not a folder"
+    else:
+        target, why = unwritable, "is not writable"
+    calls = {
+        "reproduce --figures": lambda: reproduce("fronts", figures=target, duration=0.01),
+        "reproduce --bags": lambda: reproduce("im_paper", out_root=target, duration=0.01),
+        "sweep --figures": lambda: sweep("im_short", figures=target, duration=0.01),
+        "sweep --out": lambda: sweep("im_short", out=target / "t.csv", duration=0.01),
+        "report --figures": lambda: report("/no/such/bag", figures=target),
+        "compare --figures": lambda: compare(["/no/a", "/no/b"], figures=target),
+        "layout --out": lambda: write_layout(target / "drive.foxglove.json"),
+    }
+    _refused_before_the_work(calls[verb], why, monkeypatch)
+    assert verb.split()[-1] in str(pytest.raises(ConfigError, calls[verb]).value)
+
+
+def test_an_unwritable_figures_folder_is_one_line_on_the_command_line(unwritable):
+    why = "No such file or directory" if os.geteuid() == 0 else "Permission denied"
+    r = cli("reproduce", "fronts", "--figures", str(unwritable), "--duration", "0.01")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines() == [
+        f"predictive-drive: error: --figures {unwritable}: cannot write there: "
+        f"{unwritable.parent} is not writable ({why})"
+    ]

@@ -91,3 +91,35 @@ def test_on_a_terminal_the_progress_is_a_bar(capsys, tmp_path, monkeypatch):
     assert cli.main(["sweep", "im_short", "--strategy", "mptc,db_mptc", "--duration", "0.01"]) == 0
     err = capsys.readouterr().err
     assert "run/s" in err and "done (" not in err  # tqdm's bar, not the lines of a log
+
+
+def test_a_ctrl_c_says_which_runs_finished_and_which_bags_it_cut(tmp_path):
+    """Interrupted while runs are in flight (here right after the first, short one finished):
+    the study says how many of its runs had finished, where their bags are, and each bag it
+    cut, as a sweep lists them (was: 'error: interrupted' alone, the cut bags in --bags DIR
+    unnamed)."""
+    from predictive_drive.errors import Interrupted
+    from procs import wait_until
+
+    def progress(done, total):  # once a long run is in flight (its bag begun)
+        wait_until(lambda: len(list(kept.glob("long*"))) > 0, "no long run began", timeout=60)
+        raise KeyboardInterrupt
+
+    kept = tmp_path / "kept"
+    with studying(kept, jobs=2, progress=progress) as s:
+        cases = [Case("db_mptc", bag=s.bag("short"), duration=0.01)] + [
+            Case("db_mptc", {"torque_controller.lambda_psi": v}, bag=s.bag(f"long{v}"),
+                 duration=60.0)
+            for v in (10, 20)
+        ]  # fmt: skip
+        with pytest.raises(Interrupted) as e:
+            s.runs("im_short", cases)
+    said = str(e.value).splitlines()
+    assert (
+        said[0] == f"interrupted: 1 of 3 runs of the study had finished; their bags are in {kept}"
+    )
+    cut = [line for line in said[1:] if line.startswith("not complete: ")]
+    assert cut and len(cut) == len(said) - 1, said
+    assert all(
+        "cut at" in line and "closed (readable)" in line or "removed" in line for line in cut
+    )

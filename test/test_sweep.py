@@ -184,7 +184,7 @@ def test_a_stop_waits_for_a_worker_still_starting(tmp_path):
     before = set(descendants(os.getpid()))
     fut = pool.submit(run_case, path.read_text(), str(path), case)
     done: dict[int, Row] = {}
-    _stop_local(pool, {fut: 0}, done, [case])  # at once: the worker is still importing
+    _stop_local(pool, {fut: 0}, done, [case], [0])  # at once: the worker is still importing
     assert workers_left(before) == []
     assert done[0].error in (INTERRUPTED, NOT_RUN), done[0].error
     if bag.exists():  # closed with what it holds, or stopped in its opening: no whole step,
@@ -323,10 +323,13 @@ def test_sweep_record_json_on_the_command_line(tmp_path):
 
 
 @pytest.mark.core
-def test_ctrl_c_on_the_command_line_exits_130_with_the_rows_written(tmp_path):
+@pytest.mark.parametrize("presses", [1, 2], ids=["ctrl-c", "ctrl-c twice"])
+def test_ctrl_c_on_the_command_line_exits_130_with_the_rows_written(tmp_path, presses):
     """Ctrl-C once a row is done (with one process the runs go one after the other: the second
     run's bag appearing means the first is complete): exit 130, the table written with the
-    finished rows, the table printed saying they are kept."""
+    finished rows, the table printed saying they are kept. Twice in a row: the same, the run in
+    flight ended outright and its bag said to be cut or removed (was: 'error: interrupted'
+    alone, no table, no sweep.csv)."""
     out = tmp_path / "t"
     p = subprocess.Popen(
         [*CLI, "sweep", "im_short", "--set", "torque_controller.lambda_psi=10,20,30,40,50,60",
@@ -339,13 +342,16 @@ def test_ctrl_c_on_the_command_line_exits_130_with_the_rows_written(tmp_path):
             "no run finished",
             proc=p,
         )
-        p.send_signal(signal.SIGINT)
+        for _ in range(presses):
+            p.send_signal(signal.SIGINT)
+            time.sleep(0.02)
         stdout, stderr = p.communicate(timeout=60)
     finally:
         kill_if_running(p)
     assert p.returncode == 130, stderr
     assert "Traceback" not in stderr
     assert "of 6 runs" in stdout and "interrupted: the rows above are kept" in stdout
+    assert "not complete: " in stdout  # the run in flight: its bag cut (closed) or removed
     with (out / "sweep.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert 1 <= len(rows) < 6 and all(row["error"] == "" for row in rows)

@@ -36,6 +36,7 @@ from . import __version__, interrupts
 from .errors import BagError
 from .interface import BAG_TOPICS, TOPICS
 from .mcapio import MAGIC, ChunkWriter, MessageGroup
+from .outputs import unwritable
 from .schemas import message_definition, type_hash
 
 __all__ = [
@@ -124,13 +125,9 @@ def check_new_bag(directory: str | Path, *, claimed: bool = False) -> Path:
                 f"--out {d}: {what} of that name exists ({', '.join(others[:3])}"
                 f"{', ...' if len(others) > 3 else ''}); choose another --out"
             )
-    parent = d.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise BagError(f"--out {d}: {parent} is a file, not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise BagError(f"--out {d}: cannot create it: {parent} is not writable")
+    why = unwritable(d)
+    if why is not None:
+        raise BagError(f"--out {d}: cannot create it: {why}")
     return d
 
 

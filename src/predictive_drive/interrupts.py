@@ -11,9 +11,10 @@ handle signals otherwise (the ROS nodes stop at their spin loop's next turn) are
 from __future__ import annotations
 
 import contextlib
+import signal
 from collections.abc import Iterator
 
-__all__ = ["held", "interrupt"]
+__all__ = ["counting", "held", "interrupt"]
 
 _depth = 0  #: held blocks the process is in
 _pending = False  #: an interrupt came inside one
@@ -40,3 +41,27 @@ def held() -> Iterator[None]:
         if not _depth and _pending:
             _pending = False
             raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def counting() -> Iterator[list[int]]:
+    """While a stop is under way, a Ctrl-C or SIGTERM is counted (``[n]``), not raised: a press
+    at any moment of the stop is a press to act on (end what still runs outright), never an
+    escape that loses the stop's summary. The handler only adds one: a signal inside it runs it
+    again, harmlessly. Only where handlers can be set (the main thread); elsewhere nothing is
+    counted."""
+    presses = [0]
+
+    def press(_signum: int, _frame: object) -> None:
+        presses[0] += 1
+
+    try:
+        previous = {sig: signal.signal(sig, press) for sig in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        yield presses
+        return
+    try:
+        yield presses
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

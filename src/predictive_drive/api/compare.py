@@ -10,6 +10,7 @@ from typing import Any
 
 from ..core.metrics import Metrics, unequal_switching
 from ..errors import ConfigError
+from ..outputs import check_output_dir
 from .report import evaluate
 
 __all__ = ["Compared", "Comparison", "compare"]
@@ -56,6 +57,7 @@ def compare(bags: Sequence[str | Path], *, figures: str | Path | None = None) ->
     """Each recording's metrics; ``figures``: a folder for the overlaid figures (PNG)."""
     if len(bags) < 2:
         raise ConfigError("compare needs two recordings or more")
+    check_output_dir(figures, option="compare --figures")
     evs = [evaluate(b) for b in bags]
     labels = [f"{ev.scenario.name} {ev.info.info['strategy']}" for ev in evs]
     if len(set(labels)) < len(labels):  # the same scenario and strategy twice: say which bag

@@ -14,6 +14,7 @@ from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
+from ..outputs import check_output_dir
 from ..readback import BagInfo, read_bag
 from ..recording import (
     OwnNode,
@@ -249,6 +250,7 @@ def report(
     measured current angle and amplitude it settled to (the MTPA view). ``figures``: a folder to
     draw the paper-style figures into (PNG); ``window``, ``thd_window``: evaluate over these
     instead of the recorded scenario's (s, [start, end))."""
+    check_output_dir(figures, option="report --figures")
     ev = evaluate(bag, window=window, thd_window=thd_window)
     drawn: list[Path] = []
     if figures is not None:

@@ -25,6 +25,7 @@ from ..core.metrics import unequal_switching
 from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..errors import ConfigError
+from ..outputs import check_output_dir
 from ..reports.fronts import FRONTS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES, Column, MTPAStudy
 from ..reports.realism import (
@@ -306,6 +307,7 @@ def reproduce(
         )
     if scenario == FRONTS_STUDY:  # its knobs, checked before anything runs
         fronts = with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz, lambda_u=lambda_u)
+    check_output_dir(figures, option="--figures")  # before the work, not after it
     with studying(
         out_root,
         engine=engine,

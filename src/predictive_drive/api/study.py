@@ -23,7 +23,8 @@ from typing import Any
 
 from ..bag import check_new_bag
 from ..config import scenario_with
-from ..errors import PredictiveDriveError
+from ..errors import Interrupted, PredictiveDriveError
+from ..outputs import check_output_dir
 from .report import evaluate
 from .run import run
 from .sweep import Analysis, Case, Row, run_cases
@@ -129,12 +130,16 @@ class StudyRuns:
                 progress=finished,
             )
             if result.interrupted:
-                raise KeyboardInterrupt
+                raise self.interrupted(before + len(result.rows), result.cut)
             rows, self.where = result.rows, result.engine
         else:
             rows, self.where = [], self.engine
             for i, c in enumerate(cases):
-                rows.append(self._graph_run(scenario, c, analysis))
+                try:
+                    rows.append(self._graph_run(scenario, c, analysis))
+                except Interrupted as e:  # the run's own report: where its bag is, what it holds
+                    cut = [str(e).removeprefix("interrupted: ")]
+                    raise self.interrupted(before + i, cut) from None
                 finished(i + 1, len(cases))
         for row in rows:
             if row.error or row.metrics is None:
@@ -156,6 +161,16 @@ class StudyRuns:
         ev = evaluate(r.bag)
         extra = analysis(ev.trace, ev.scenario) if analysis is not None else {}
         return Row(c.strategy, c.settings, ev.metrics, None, r.wall_s, c.bag, extra)
+
+    def interrupted(self, finished: int, cut: Sequence[str]) -> Interrupted:
+        """What a Ctrl-C leaves of the study: how many runs had finished, where their bags
+        are (kept only with ``--bags``), and each run it cut, as a sweep lists them."""
+        text = f"interrupted: {finished} of {self.planned} runs of the study had finished"
+        if self.keep:
+            text += f"; their bags are in {self.folder}"
+        else:
+            text += " (no table: it needs every run; --bags DIR keeps each run's bag)"
+        return Interrupted("\n".join([text, *(f"not complete: {c}" for c in cut)]))
 
     def kept(self) -> BagsKept | None:
         """The bags kept for the user (None when they were not asked for)."""
@@ -179,6 +194,7 @@ def studying(
     """A study's :class:`StudyRuns`; ``bags``: the folder to keep its bags in, or None: the
     bags the study needs go to a temporary folder, removed when it ends (however it ends)."""
     if bags is not None:
+        check_output_dir(bags, option="--bags")
         yield StudyRuns(Path(bags), True, engine, duration, jobs, scheduler, progress)
         return
     tmp = Path(tempfile.mkdtemp(prefix="predictive_drive_study_"))

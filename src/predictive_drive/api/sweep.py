@@ -38,6 +38,7 @@ from ..core.scenario import Scenario
 from ..core.trace import Trace
 from ..dependencies import missing
 from ..errors import ConfigError, PredictiveDriveError
+from ..outputs import check_output_dir
 from .report import metrics_of
 
 __all__ = [
@@ -332,11 +333,19 @@ def run_cases(
                     progress(len(done), len(cases))
         except KeyboardInterrupt:
             interrupted = True
-            for fut in futures:
-                fut.cancel()
-            if isinstance(pool, _LocalPool):
-                _stop_local(pool, {f: i for f, i in futures.items() if i not in done}, done, cases)
-    rows, cut = _settle(done, cases) if interrupted else ([done[i] for i in sorted(done)], [])
+            # from here a Ctrl-C is counted, never raised: a second one ends the runs in flight
+            # outright, and the summary (rows, table, cut bags) still comes
+            with interrupts.counting() as presses:
+                for fut in futures:
+                    fut.cancel()
+                if isinstance(pool, _LocalPool):
+                    running = {f: i for f, i in futures.items() if i not in done}
+                    _stop_local(pool, running, done, cases, presses)
+    if interrupted:
+        with interrupts.counting():
+            rows, cut = _settle(done, cases)
+    else:
+        rows, cut = [done[i] for i in sorted(done)], []
     return SweepResult(
         path.stem, rows, len(cases), engine, time.perf_counter() - t0, interrupted, cut=cut
     )
@@ -363,32 +372,32 @@ def _stop_local(
     running: dict[cf.Future[Row], int],
     done: dict[int, Row],
     cases: Sequence[Case],
+    presses: list[int],
 ) -> None:
     """Stop the local workers: each is told to (SIGTERM, see :func:`_stop_case`) once its
     handler is in, so the runs in flight end where they are and close their bags, and ``done``
-    takes their rows; those still running after :data:`STOP_WAIT` s (or at a second Ctrl-C) are
-    ended outright. (A worker still starting died of a SIGTERM sent at once, and the broken pool
-    ended the wait for the others: one was killed while it closed its bag.)"""
+    takes their rows; those still running after :data:`STOP_WAIT` s (or once ``presses``
+    counts another Ctrl-C) are ended outright. (A worker still starting died of a SIGTERM sent
+    at once, and the broken pool ended the wait for the others: one was killed while it closed
+    its bag.)"""
     deadline = time.monotonic() + STOP_WAIT
     ready: set[int] = set()
     told: set[int] = set()
     left = dict(running)
-    try:
-        while left and time.monotonic() < deadline:
-            while not pool.ready.empty():
-                ready.add(pool.ready.get())
-            for p in _workers(pool):
-                if p.pid in ready and p.pid not in told:
-                    told.add(p.pid)
-                    with suppress(ProcessLookupError):
-                        os.kill(p.pid, signal.SIGTERM)
-            finished, _ = cf.wait(left, timeout=0.05)
-            for fut in finished:
-                i = left.pop(fut)
-                if not fut.cancelled():
-                    done[i] = _row_of(fut, cases[i])
-    except KeyboardInterrupt:
-        pass  # ended outright below: their bags are seen to in _settle
+    while left and time.monotonic() < deadline and not presses[0]:
+        while not pool.ready.empty():
+            ready.add(pool.ready.get())
+        for p in _workers(pool):
+            if p.pid in ready and p.pid not in told:
+                told.add(p.pid)
+                with suppress(ProcessLookupError):
+                    os.kill(p.pid, signal.SIGTERM)
+        finished, _ = cf.wait(left, timeout=0.05)
+        for fut in finished:
+            i = left.pop(fut)
+            if not fut.cancelled():
+                done[i] = _row_of(fut, cases[i])
+    # the rest are ended outright: their bags are seen to in _settle
     for p in _workers(pool):
         p.kill()
     pool.shutdown(wait=True, cancel_futures=True)
@@ -504,6 +513,7 @@ def check_table_files(out: str | Path) -> list[Path]:
     for f in files:
         if f.is_dir():
             raise ConfigError(f"sweep --out {out}: {f} is a folder, not a table file")
+        check_output_dir(f.parent, option="sweep --out")
         if f.suffix == ".parquet":
             _pyarrow()
     return files
@@ -578,6 +588,7 @@ def sweep(
             cases[i] = Case(c.strategy, c.settings, str(check_new_bag(bag).resolve()))
     if out is not None:
         check_table_files(out)  # the table can be written: checked before the runs, not after
+    check_output_dir(figures, option="sweep --figures")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise ConfigError(f"--duration must be a positive number of seconds, got {duration}")
     result = run_cases(

@@ -9,12 +9,14 @@ holds every path to the labels.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
 from ..interface import TOPICS
+from ..outputs import check_output_file
 
 __all__ = ["PLOTS", "foxglove_layout", "write_layout"]
 
@@ -113,10 +115,11 @@ def write_layout(path: str | Path, *, replace: bool = False) -> Path:
     file renamed); a file already there is replaced only with ``replace``. ConfigError names the
     path and why it is not written."""
     p = Path(path)
-    if p.exists() and not replace:
-        raise ConfigError(f"layout --out {p}: the file exists; --force replaces it")
     if p.is_dir():
         raise ConfigError(f"layout --out {p}: a directory, not a file")
+    if p.exists() and not replace:
+        raise ConfigError(f"layout --out {p}: the file exists; --force replaces it")
+    check_output_file(p, option="layout --out")
     text = json.dumps(foxglove_layout(), indent=2, ensure_ascii=False) + "\n"
     tmp = p.with_name(p.name + ".tmp")
     try:
@@ -124,6 +127,7 @@ def write_layout(path: str | Path, *, replace: bool = False) -> Path:
         tmp.write_text(text)
         tmp.replace(p)
     except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise ConfigError(f"layout --out {p}: cannot write it: {e.strerror}") from None
+        with contextlib.suppress(OSError):  # under a file, on a read-only disk: nothing to undo
+            tmp.unlink(missing_ok=True)
+        raise ConfigError(f"layout --out {p}: cannot write it: {e.strerror or e}") from None
     return p

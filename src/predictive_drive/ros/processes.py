@@ -24,6 +24,7 @@ from typing import Any
 
 import yaml
 
+from .. import interrupts
 from ..errors import ConfigError, GraphError
 
 __all__ = [
@@ -145,7 +146,7 @@ def stop_processes(
     once presses are counted (one that comes right after it is acted on, never raised).
     Returns the children still running then (none when it saw them all end)."""
     phases = [(signal.SIGINT, grace), (signal.SIGTERM, TERM_GRACE), (signal.SIGKILL, 5.0)]
-    with _counting_presses() as presses:
+    with interrupts.counting() as presses:
         if announce:
             print(announce, file=sys.stderr, flush=True)
         acted = 0  # presses acted on: each moves the stop on by one step
@@ -210,28 +211,6 @@ def end_own_nodes(procs: Mapping[str, subprocess.Popen[bytes]], *, after: str) -
 
 def _pressed_since(presses: list[int], before: int) -> Callable[[], bool]:
     return lambda: presses[0] > before
-
-
-@contextmanager
-def _counting_presses() -> Iterator[list[int]]:
-    """While children stop, a Ctrl-C or SIGTERM is counted (``[n]``), not raised: an interrupt
-    at any moment of the stop is a press to act on, never an escape from it. Only where signal
-    handlers can be set (the main thread); elsewhere nothing is counted."""
-    presses = [0]
-
-    def press(_signum: int, _frame: object) -> None:
-        presses[0] += 1
-
-    try:
-        previous = {sig: signal.signal(sig, press) for sig in (signal.SIGINT, signal.SIGTERM)}
-    except ValueError:  # not the main thread
-        yield presses
-        return
-    try:
-        yield presses
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def _wait_for(
