@@ -357,3 +357,23 @@ def test_ctrl_c_on_the_command_line_exits_130_with_the_rows_written(tmp_path, pr
     assert 1 <= len(rows) < 6 and all(row["error"] == "" for row in rows)
     # each a whole run: its metrics window, 0.05-0.4 s of the 0.5 s (7,000 steps)
     assert all(float(row["steps"]) == 7000 for row in rows), rows
+
+
+def test_a_horizon_is_checked_against_the_strategy_that_runs(tmp_path):
+    """--strategy applies before the controller's keys are checked: im_short's file runs
+    db_mptc, and `run --strategy mptc --set torque_controller.horizon=2` runs mptc at N = 2
+    (was: refused, 'db_mptc looks one period ahead'); its recording reads back. In a sweep each
+    row is checked with its own strategy: mptc at N = 3 runs, db_mptc at N = 3 is an error row
+    that says why."""
+    from predictive_drive.api.run import run
+    from predictive_drive.readback import read_bag
+
+    r = run("im_short", strategy="mptc", settings={"torque_controller.horizon": 2},
+            engine="inprocess", duration=0.005, out=tmp_path / "b")  # fmt: skip
+    assert r.strategy == "mptc" and r.steps == 100
+    assert read_bag(tmp_path / "b")[0].col("command", "horizon")[-1] == 2
+    rows = sweep("im_short", strategies=["mptc", "db_mptc"],
+                 sets=["torque_controller.horizon=1,3"], duration=0.005, jobs=1).rows  # fmt: skip
+    errors = {(row.strategy, row.settings["torque_controller.horizon"]): row.error for row in rows}
+    assert errors[("mptc", 3)] is None and errors[("db_mptc", 1)] is None
+    assert "db_mptc looks one period ahead" in errors[("db_mptc", 3)]

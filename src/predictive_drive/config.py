@@ -325,15 +325,22 @@ def load_scenario(
         ) from None
     except OSError as e:
         raise ConfigError(f"{path}: cannot read it: {e.strerror}") from None
-    sc = load_scenario_text(text, path, own=own)
+    sc = load_scenario_text(text, path, own=own, strategy=strategy)
     return sc.with_strategy(strategy).with_duration(duration)
 
 
 def load_scenario_text(
-    text: str, path: str | Path, *, legacy: bool = False, own: Collection[str] = ()
+    text: str,
+    path: str | Path,
+    *,
+    legacy: bool = False,
+    own: Collection[str] = (),
+    strategy: str | None = None,
 ) -> Scenario:
     """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in).
-    ``legacy``: a recording's stored text, which may predate the ``family`` key. ``own``: nodes
+    ``strategy``: the strategy the run starts with, in place of the file's, before the
+    controller's keys are checked (a horizon is checked against the strategy that runs, not
+    the file's). ``legacy``: a recording's stored text, which may predate the ``family`` key. ``own``: nodes
     of the user's own (:data:`OWN_NODES`): their sections' keys are the user's, passed to their
     node as they are and not checked; the scenario holds the built-in settings only where the
     section happens to be a valid one (else None), and a torque controller of one's own is
@@ -362,6 +369,8 @@ def load_scenario_text(
         default = LEGACY_FAMILIES[Machine(run.machine)] if legacy else None
         family = family_of(ctrl_params, f"{path}: {ctrl_key}", default)
     ctrl_params.pop(FAMILY_KEY, None)
+    if strategy is not None and "torque_controller" not in own:
+        ctrl_params["strategy"] = strategy
     if (controls := controller_class(family).machine) != run.machine:
         raise ConfigError(
             f"{path}: {ctrl_key}.{FAMILY_KEY}: {family!r} controls a {controls} machine, but the "

@@ -140,7 +140,8 @@ def scenario_of(info: Mapping[str, str], where: Path) -> Scenario:
     (the sections of the user's own nodes theirs, as when it ran)."""
     own = [n.name for n in own_nodes(info)]
     where_ = f"{where} (stored scenario)"
-    sc = load_scenario_text(info["scenario_yaml"], where_, legacy=True, own=own)
+    first = info["strategy"] if "torque_controller" not in own else None
+    sc = load_scenario_text(info["scenario_yaml"], where_, legacy=True, own=own, strategy=first)
     return sc.with_strategy(info["strategy"]).with_duration(float(info["duration"]))
 
 

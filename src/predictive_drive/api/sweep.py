@@ -195,7 +195,7 @@ def run_case(
         if _stopping:  # the sweep was interrupted before this case began: it never runs
             row.error = NOT_RUN
             return row
-        sc = load_scenario_text(text, where).with_strategy(case.strategy)
+        sc = load_scenario_text(text, where, strategy=case.strategy)
         if case.duration is not None or duration is not None:
             sc = sc.with_duration(case.duration if case.duration is not None else duration)
         if case.bag is not None:

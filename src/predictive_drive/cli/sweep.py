@@ -25,7 +25,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="KEY=V1,V2,...",
         help="a scenario key and its values (dotted: torque_controller.lambda_psi, "
         "torque_controller.motor.l_q; *0.7 = 70 %% of the present value); repeat for more keys: "
-        "the grid is their cartesian product",
+        "the grid is their cartesian product. Each run's settings are checked with its own "
+        "strategy: a value that strategy cannot take (a horizon for a one-step law) is that "
+        "row's error, saying why, and the other rows run",
     )
     p.add_argument("--duration", type=seconds, help="simulated seconds of every run")
     p.add_argument(
