@@ -128,6 +128,8 @@ def test_your_controllers_parameters_and_name_are_yours_and_recorded(tmp_path):
     assert (node.name, node.command) == ("torque_controller", DTC)
     assert node.parameters["torque_band"] == 0.2 and node.parameters["gain"] == 3
     assert node.parameters["motor.r_s"] == load_scenario("im_short").controller.motor.r_s
+    # none of the built-in family's keys (was: family, strategy=db_mptc, lambda_psi, ...)
+    assert {k.split(".")[0] for k in node.parameters} == {"motor", "torque_band", "gain"}
     said = (r.bag / "logs" / "torque_controller.log").read_text()
     assert "torque band 0.2 N·m" in said, said  # the node got it as a parameter
     trace, info = read_bag(r.bag)
@@ -147,7 +149,7 @@ def test_a_label_a_folder_cannot_hold_is_refused_and_default_folders_hold_no_col
     for bad in ("a:b", "my ctrl", "x/y", ""):
         with pytest.raises(ConfigError, match=r"--label .*letters, digits and _ \. \+ -"):
             run("im_short", label=bad, external={"torque_controller": "true"}, out=tmp_path / "x")
-    with pytest.raises(ConfigError, match="--label dtc: names a torque controller of your own"):
+    with pytest.raises(ConfigError, match="--label dtc: names a node of your own"):
         run("im_short", label="dtc", out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
     sc = load_scenario("im_short", strategy="external:dtc")
@@ -173,6 +175,26 @@ def test_your_section_takes_any_key_and_ours_are_checked():
         load_scenario_text(mine, path)
     speed = apply_settings(text, {"speed_pi.my_gain": 1.5}, path, own=["speed_pi"])
     assert load_scenario_text(speed, path, own=["speed_pi"]).speed_pi is None
+
+
+@pytest.mark.core
+def test_your_controller_gets_the_model_and_what_you_set_not_our_familys_keys(tmp_path):
+    """A built-in scenario's torque controller section is a family's (family, strategy, its
+    weights): your node gets of it only the controller's model of the machine (motor.*), with
+    what you set; a section that names no built-in family is yours and stays whole."""
+    from predictive_drive.config import scenario_with, section_parameters
+
+    made = scenario_with("im_short", {"torque_controller.gain": 3}, tmp_path,
+                         own=["torque_controller"])  # fmt: skip
+    given = section_parameters(made.read_text(), "torque_controller")
+    assert {k.split(".")[0] for k in given} == {"motor", "gain"}
+    assert given["motor.l_m"] == 0.2751 and given["gain"] == 3
+    assert section_parameters(made.read_text(), "speed_pi")["kp"] == 0.06  # the rest as it was
+    yours = made.read_text().replace("    gain: 3", "    gain: 3\n    band: 0.1")
+    (tmp_path / "yours.yaml").write_text(yours)
+    (tmp_path / "x").mkdir()
+    again = scenario_with(tmp_path / "yours.yaml", {}, tmp_path / "x", own=["torque_controller"])
+    assert section_parameters(again.read_text(), "torque_controller")["band"] == 0.1
 
 
 @pytest.mark.process
@@ -557,15 +579,19 @@ def test_the_example_builds_with_colcon_and_its_executable_is_the_controller(tmp
 def test_the_speed_loop_started_as_an_external_command_gives_the_same_run(tmp_path):
     """--external speed_pi=COMMAND, the command being this package's own speed PI node started
     as any executable would be: the launcher's naming, namespace and parameters reach it, and
-    the run equals the one the launcher makes itself, message for message."""
+    the run equals the one the launcher makes itself, message for message. --label names the
+    run beside our strategy, so compare tells the two apart (was: refused)."""
     own = f"{shlex.quote(sys.executable)} -m predictive_drive.ros.speed_pi_node"
     a = run("im_short", engine="ros", duration=0.05, out=tmp_path / "ext",
-            external={"speed_pi": own})  # fmt: skip
+            external={"speed_pi": own}, label="my_loop")  # fmt: skip
     b = run("im_short", engine="ros", duration=0.05, out=tmp_path / "own")
     ta, info = read_bag(a.bag)
     tb, _ = read_bag(b.bag)
     assert a.strategy == b.strategy == "db_mptc"
     assert [(n.name, n.command) for n in info.own_nodes] == [("speed_pi", own)]  # recorded too
+    assert [c.label for c in compare([a.bag, b.bag]).runs] == [
+        "im_short db_mptc [speed_pi:my_loop]", "im_short db_mptc"
+    ]  # fmt: skip
     for rec in ("state", "reference"):
         assert np.array_equal(getattr(ta, rec), getattr(tb, rec), equal_nan=True), rec
     # the decisions alike (the command's last field, compute_ns, is measured; NaN where a
@@ -603,3 +629,16 @@ def test_a_users_node_ends_when_the_launcher_is_killed_outright(command, tmp_pat
         end_all([p])
         if pid and not ended(pid):  # the node this test started, if it did outlive
             os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.core
+def test_a_label_too_long_for_a_folder_name_is_refused(tmp_path):
+    """(was: a 300-letter --label with the default folder: OSError, File name too long); the
+    longest allowed names a folder that can be made."""
+    from predictive_drive.core.signals import external_name
+    from predictive_drive.recording import default_bag_dir
+
+    with pytest.raises(ConfigError, match=r"\(300 characters\): a controller's name is at most 64"):
+        run("im_short", label="a" * 300, external={"torque_controller": "true"})
+    longest = load_scenario("im_short", strategy=external_name("x" * 64))
+    (tmp_path / default_bag_dir(longest).name).mkdir()

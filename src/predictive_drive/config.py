@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import re
 import typing
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +22,7 @@ from .core.control import CONTROLLERS, controller_class
 from .core.control.speed_pi import SpeedPIParams
 from .core.machines import Machine, motor_class
 from .core.scenario import LoggerParams, PlantParams, RunParams, Scenario
+from .core.signals import EXTERNAL_PREFIX
 from .errors import ConfigError
 from .interface import NAMESPACE, NODES
 
@@ -234,6 +235,36 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     raise ConfigError(f"{where}: unsupported parameter type {hint!r}")  # pragma: no cover
 
 
+#: what a ROS 2 parameter can hold, in words (a section of the user's own is checked for it)
+ROS_PARAMETER_KINDS = (
+    "true/false, an integer, a number, a string, or a non-empty list of one of these (all of "
+    "one kind: 0.0, not 0, beside 0.5); a group of them as a nested map"
+)
+
+
+def check_ros_parameters(params: Any, where: str, prefix: str = "") -> None:
+    """Every value of ``params`` (nested maps as dotted names) is one a ROS 2 parameter file can
+    give a node, as rcl parses them: ConfigError names the key and what a parameter can hold.
+    Checked before anything starts (a list of mixed kinds failed inside rcl's argument parser,
+    an empty one inside the node's rclpy, with the graph up)."""
+    for key, value in params.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            check_ros_parameters(value, where, f"{name}.")
+            continue
+        scalar = (bool, int, float, str)
+        if isinstance(value, list):
+            kinds = {type(v) for v in value}
+            fine = len(kinds) == 1 and next(iter(kinds)) in scalar
+        else:
+            fine = isinstance(value, scalar)
+        if not fine:
+            raise ConfigError(
+                f"{where}.{name}: {value!r} cannot be a ROS parameter; one holds "
+                f"{ROS_PARAMETER_KINDS}"
+            )
+
+
 def build_section(cls: type, data: Any, nested: dict[str, type], where: str) -> Any:
     """The dataclass ``cls`` from one section's parameters; ConfigError names ``where`` and the key."""
     if not isinstance(data, dict):
@@ -370,7 +401,8 @@ def load_scenario_text(
         family = family_of(ctrl_params, f"{path}: {ctrl_key}", default)
     ctrl_params.pop(FAMILY_KEY, None)
     if strategy is not None and "torque_controller" not in own:
-        ctrl_params["strategy"] = strategy
+        if not strategy.startswith(EXTERNAL_PREFIX):  # a built-in's: checked with its keys
+            ctrl_params["strategy"] = strategy
     if (controls := controller_class(family).machine) != run.machine:
         raise ConfigError(
             f"{path}: {ctrl_key}.{FAMILY_KEY}: {family!r} controls a {controls} machine, but the "
@@ -389,6 +421,7 @@ def load_scenario_text(
         if node not in own:
             built[node] = build_section(cls, params, nested, f"{path}: {key}")
             continue
+        check_ros_parameters(params, f"{path}: {key}")
         try:  # the user's: the built-in settings where it happens to hold them
             built[node] = build_section(cls, params, nested, f"{path}: {key}")
         except ConfigError:
@@ -545,6 +578,28 @@ def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:
     return {f.name for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 
+#: what a torque controller of the user's own keeps of a built-in family's section: the
+#: controller's model of the machine (docs/ros.md#writing-your-own-controller)
+YOURS_KEEPS = ("motor",)
+
+
+def for_your_controller(text: str, where: str | Path, settings: Mapping[str, Any]) -> str:
+    """Scenario text as a torque controller of the user's own gets it. Where the section is a
+    built-in family's (it names one), the family's own keys (family, strategy, its weights and
+    thresholds) mean nothing to the user's node: the section keeps only :data:`YOURS_KEEPS`
+    and the keys ``settings`` give it (``torque_controller.KEY``, applied after). A section
+    that names no built-in family is the user's, and stays as it is."""
+    doc = parse_yaml(text, where)
+    key = f"{NAMESPACE}/torque_controller"
+    if not isinstance(doc, dict) or not isinstance(doc.get(key), dict):
+        return text
+    params = _params(doc, key, where)
+    if params.get(FAMILY_KEY) not in CONTROLLERS:
+        return text
+    doc[key]["ros__parameters"] = {k: v for k, v in params.items() if k in YOURS_KEEPS}
+    return str(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True))
+
+
 def scenario_with(
     scenario: str | Path, settings: dict[str, Any], out_dir: Path, *, own: Collection[str] = ()
 ) -> Path:
@@ -552,9 +607,13 @@ def scenario_with(
     :func:`apply_settings`; the file itself when there are none): what a ROS engine's nodes
     read and the run's bag stores."""
     path = resolve_scenario_path(scenario)
-    if not settings:
+    yours = "torque_controller" in own
+    if not settings and not yours:
         return path
     tag = "_".join(f"{k.rsplit('.', 1)[-1]}_{v}" for k, v in settings.items())
     out = out_dir / f"{path.stem}_{re.sub(r'[^A-Za-z0-9_.-]', '', tag)}.yaml"
-    out.write_text(apply_settings(path.read_text(), settings, path, own=own))
+    text = path.read_text()
+    if yours:
+        text = for_your_controller(text, path, settings)
+    out.write_text(apply_settings(text, settings, path, own=own))
     return out

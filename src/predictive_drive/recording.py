@@ -73,6 +73,7 @@ __all__ = [
     "default_bag_dir",
     "diagnostics_message",
     "own_nodes",
+    "run_label",
     "scenario_of",
     "spans_from_json",
     "command_span_keys",
@@ -101,12 +102,17 @@ class OwnNode:
 
 
 def bag_info(
-    sc: Scenario, engine: str, commands: Mapping[str, str | None] | None = None
+    sc: Scenario,
+    engine: str,
+    commands: Mapping[str, str | None] | None = None,
+    *,
+    label: str | None = None,
 ) -> dict[str, Any]:
     """What a bag stores about its run (the ``predictive_drive`` metadata record). ``commands``:
     the nodes of the user's own and the command lines they were started with (None: by hand),
     stored with the parameters their sections give them (``external``, JSON: read back by
-    :func:`own_nodes`)."""
+    :func:`own_nodes`). ``label``: the run's label where it is not in the strategy's name (a
+    speed loop of one's own with our torque controller; see :func:`run_label`)."""
     own = {
         name: {"command": command, "parameters": section_parameters(sc.text, name)}
         for name, command in (commands or {}).items()
@@ -124,7 +130,16 @@ def bag_info(
         # a controller of the user's own: the command contract it was held to
         **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
         **({"external": json.dumps(own)} if own else {}),
+        **({"label": label} if label else {}),
     }
+
+
+def run_label(info: Mapping[str, str]) -> str:
+    """How tables and figures name a recorded run: its scenario and strategy (``external:NAME``
+    for a torque controller of one's own), and the run's label where a speed loop of one's own
+    carried it (``im_short mptc [speed_pi:NAME]``)."""
+    text = f"{info['scenario']} {info['strategy']}"
+    return text + (f" [speed_pi:{info['label']}]" if info.get("label") else "")
 
 
 def own_nodes(info: Mapping[str, str]) -> list[OwnNode]:

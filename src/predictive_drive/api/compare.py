@@ -11,6 +11,7 @@ from typing import Any
 from ..core.metrics import Metrics, unequal_switching
 from ..errors import ConfigError
 from ..outputs import check_output_dir
+from ..recording import run_label
 from .report import evaluate
 
 __all__ = ["Compared", "Comparison", "compare"]
@@ -59,7 +60,7 @@ def compare(bags: Sequence[str | Path], *, figures: str | Path | None = None) ->
         raise ConfigError("compare needs two recordings or more")
     check_output_dir(figures, option="compare --figures")
     evs = [evaluate(b) for b in bags]
-    labels = [f"{ev.scenario.name} {ev.info.info['strategy']}" for ev in evs]
+    labels = [run_label(ev.info.info) for ev in evs]
     if len(set(labels)) < len(labels):  # the same scenario and strategy twice: say which bag
         labels = [f"{lab} ({Path(b).name})" for lab, b in zip(labels, bags)]
     drawn: list[Path] = []

@@ -20,6 +20,7 @@ from ..recording import (
     OwnNode,
     StrategySpan,
     command_span_keys,
+    run_label,
     scenario_of,
     spans_from_json,
     strategy_spans,
@@ -256,7 +257,7 @@ def report(
     if figures is not None:
         from ..reports.figures import Run, run_figures, save
 
-        label = f"{ev.scenario.name} {ev.info.info['strategy']}"
+        label = run_label(ev.info.info)
         drawn = save(run_figures(Run(ev.trace, ev.scenario, label)), figures)
     return Report(
         bag=Path(bag),

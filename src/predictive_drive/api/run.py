@@ -149,12 +149,13 @@ def scenario_file(
 ) -> Iterator[str | Path]:
     """The scenario with ``settings`` applied, as a file that lasts as long as the block (a ROS
     engine's nodes read it); the scenario itself when there are none. ``own``: the nodes of the
-    user's own, whose sections take any key."""
-    if not settings:
+    user's own, whose sections take any key (a torque controller's section is the user's:
+    :func:`~predictive_drive.config.for_your_controller`)."""
+    if not settings and "torque_controller" not in own:
         yield scenario
         return
     with tempfile.TemporaryDirectory(prefix="predictive-drive-") as tmp:
-        yield scenario_with(scenario, settings, Path(tmp), own=own)
+        yield scenario_with(scenario, settings or {}, Path(tmp), own=own)
 
 
 #: the nodes a user may replace with their own (``run --external``)
@@ -170,11 +171,11 @@ def _check_external(
 ) -> None:
     """ConfigError for an --external that cannot be: an unknown node, an empty command or one
     that cannot start, an engine without separate node processes, a strategy or a switch for a
-    controller of one's own; a --label without one."""
-    if label is not None and "torque_controller" not in external:
+    controller of one's own; a --label without a node of one's own."""
+    if label is not None and not external:
         raise ConfigError(
-            f"--label {label}: names a torque controller of your own: give --external "
-            "torque_controller[=COMMAND] too"
+            f"--label {label}: names a node of your own: give --external "
+            "torque_controller[=COMMAND] or speed_pi[=COMMAND] too"
         )
     if not external:
         return
@@ -233,7 +234,8 @@ def run(
     place of ours, by name (``torque_controller``, ``speed_pi``): the command that starts one,
     or None to start it by hand (docs/ros.md#writing-your-own-controller); their sections of
     the scenario (and ``settings`` of them) are theirs, not checked; ``label``: the name of a
-    torque controller of one's own, ``external:LABEL`` in the recording, tables and figures;
+    torque controller of one's own, ``external:LABEL`` in the recording, tables and figures (of
+    a speed loop of one's own, with our torque controller: the run's label beside its strategy);
     ``announce``: told what the user should know before the run starts (where the live view
     serves), once every check has passed."""
     if engine not in ENGINES:
@@ -242,6 +244,8 @@ def run(
     _check_external(external, engine, strategy, switches, label)
     if "torque_controller" in external:
         strategy = external_name(label) if label is not None else EXTERNAL
+    elif label is not None:  # a speed loop of one's own: the run's label, beside the strategy
+        external_name(label)  # the same rules: it names the run in tables and figures
     for option, value in (("--peer-timeout", peer_timeout), ("--startup-timeout", startup_timeout)):
         if not (math.isfinite(value) and value > 0):
             raise ConfigError(f"{option} must be a positive number of seconds, got {value}")
@@ -288,6 +292,7 @@ def run(
                         live_port=live,
                         external=external,
                         startup_timeout=startup_timeout,
+                        label=label if "torque_controller" not in external else None,
                     )
             except KeyboardInterrupt:
                 status = bag_status(bag).describe()

@@ -214,9 +214,16 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
                 f"  {'strategy':<11}{sp.strategy:>16}   steps {sp.first}-{sp.last} "
                 f"({sp.t_start:g}-{sp.t_end:g} s)"
             )
+    from ..config import YOURS_KEEPS
+
     for node in d.own_nodes:
-        given = ", ".join(f"{k}={v}" for k, v in node.parameters.items()) or "none"
+        model = {k: v for k, v in node.parameters.items() if k.split(".")[0] in YOURS_KEEPS}
+        mine = {k: v for k, v in node.parameters.items() if k not in model}
+        given = ", ".join(f"{k}={v}" for k, v in mine.items()) or "none"
         print(f"  {'your node':<11}{node.name}: {node.started}; parameters: {given}")
+        if model and node.name == "torque_controller":
+            passed = ", ".join(f"{k}={v}" for k, v in model.items())
+            print(f"  {'':<11}and, passed by the launcher (the controller's model): {passed}")
     if d.outcome:
         print(f"  {'outcome':<11}{d.outcome}")
         print(

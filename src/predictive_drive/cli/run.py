@@ -90,8 +90,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--label",
         metavar="NAME",
         help="with --external torque_controller: your controller's name, external:NAME in the "
-        "bag, its folder name, report, compare and figures (letters, digits, _ . + -; default "
-        "torque_controller); --set torque_controller.KEY=VALUE gives it parameters",
+        "bag, its folder name, report, compare and figures (letters, digits, _ . + -, at most 64; "
+        "default torque_controller); --set torque_controller.KEY=VALUE gives it parameters. "
+        "With --external speed_pi alone: your speed loop's name, [speed_pi:NAME] beside the "
+        "strategy in report, compare and figures",
     )
     p.add_argument("--out", help="bag directory to write (must not exist)")
     p.add_argument(

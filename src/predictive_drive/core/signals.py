@@ -101,6 +101,9 @@ class PhasePulses(NamedTuple):
 EXTERNAL_PREFIX = "external:"
 EXTERNAL = EXTERNAL_PREFIX + "torque_controller"
 _LABEL = re.compile(r"[A-Za-z0-9_.+-]+")
+#: the longest label: a bag's folder name (scenario, label, date, PID) must stay well under the
+#: 255 bytes a file name may have
+LABEL_MAX = 64
 
 
 def external_name(label: str) -> str:
@@ -111,6 +114,11 @@ def external_name(label: str) -> str:
         raise ConfigError(
             f"--label {label!r}: a controller's name is letters, digits and _ . + - (it names "
             f"the controller in bags, their folder names, tables and figures)"
+        )
+    if len(label) > LABEL_MAX:
+        raise ConfigError(
+            f"--label {label[:20]}... ({len(label)} characters): a controller's name is at most "
+            f"{LABEL_MAX} characters (it is part of the bag's folder name)"
         )
     return EXTERNAL_PREFIX + label
 

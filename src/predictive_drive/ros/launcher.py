@@ -79,6 +79,7 @@ def run_graph(
     live_port: int = 0,
     external: Mapping[str, str | None] | None = None,
     startup_timeout: float = 60.0,
+    label: str | None = None,
 ) -> None:
     """Run ``sc`` through the graph and record it to ``bag``; with ``live_port``, the logger
     also serves the live view there (:class:`~predictive_drive.live.LiveView`); GraphError names the node that
@@ -113,6 +114,7 @@ def run_graph(
         engine="composed" if composed else "ros",
         live_port=live_port,
         external=json.dumps(external) if external else "",  # for the bag's metadata
+        label=label or "",
     )
     # the launcher follows /clock for progress and switches: step 0 waits for it too
     watching = bool(switches) or progress is not None

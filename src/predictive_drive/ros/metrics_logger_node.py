@@ -62,6 +62,11 @@ class RecordingParams:
         "line the launcher started it with (null: started by hand); their sections are theirs",
         default="",
     )
+    label: str = choice(
+        "the run's label (run --label) when a speed loop of the user's own runs with our torque "
+        "controller, for the bag's metadata ('': none)",
+        default="",
+    )
 
 
 class MetricsLoggerNode(WatchedNode):
@@ -88,7 +93,7 @@ class MetricsLoggerNode(WatchedNode):
         try:
             # run by the project's launcher, which holds the directory's claim for the run
             claimed = launcher_pid() != 0
-            info = bag_info(sc, extra.engine, commands)
+            info = bag_info(sc, extra.engine, commands, label=extra.label or None)
             self.writer = BagWriter(out, info=info, claimed=claimed)
         except BaseException:
             if self.live is not None:
