@@ -642,3 +642,19 @@ def test_a_label_too_long_for_a_folder_name_is_refused(tmp_path):
         run("im_short", label="a" * 300, external={"torque_controller": "true"})
     longest = load_scenario("im_short", strategy=external_name("x" * 64))
     (tmp_path / default_bag_dir(longest).name).mkdir()
+
+
+@pytest.mark.core
+@pytest.mark.parametrize(
+    "value", [[1, "x"], [], None, [[1.0]]], ids=["mixed", "empty", "null", "nested-list"]
+)
+def test_a_value_no_ros_parameter_can_hold_is_refused_before_anything_starts(value, tmp_path):
+    """Your section is unchecked against our families, but what rcl cannot parse is refused
+    first, naming the key and what a parameter holds (was: the graph started, then rcl's
+    'Failed to parse global arguments' for a mixed list, the node's PARAMETER_NOT_SET for an
+    empty one)."""
+    with pytest.raises(ConfigError, match=r"torque_controller\.my_key: .* cannot be a ROS "
+                       r"parameter; one holds true/false, an integer, a number, a string"):  # fmt: skip
+        run("im_short", external={"torque_controller": "true"}, out=tmp_path / "b",
+            settings={"torque_controller.my_key": value})  # fmt: skip
+    assert not (tmp_path / "b").exists()
