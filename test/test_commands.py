@@ -100,3 +100,20 @@ def test_the_plant_node_applies_every_form_and_refuses_a_bad_command_naming_it(n
         and ("step 0: field 'k' = 5: the command for another step (the plant waits for step 0)")
         in failure
     )
+
+
+@pytest.mark.core
+def test_a_command_for_another_time_prints_its_times_as_numbers():
+    """The stepper hands the state's time over as numpy's float (was: 't = np.float64(5e-05) s'
+    in the message replay --into printed)."""
+    import numpy as np
+
+    from predictive_drive.codec import CODECS, command_for_step
+
+    nothing = Command(*([math.nan] * len(Command._fields)))
+    cmd = nothing._replace(k=1, t=1e-4, **PhasePulses(0, 0, 0, 0.5, 0.5, 0.5)._asdict())
+    data = CODECS["command"].encode(tuple(cmd))
+    with pytest.raises(CommandError) as e:
+        command_for_step(data, k=1, t=np.float64(5e-05), u_dc=lambda: 582.0)
+    assert "field 't' = 0.0001: " in str(e.value) and "(state 1: t = 5e-05 s)" in str(e.value)
+    assert "np." not in str(e.value)

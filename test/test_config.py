@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -226,6 +227,8 @@ def test_a_switching_effort_must_be_a_finite_number_not_below_zero(scenario, val
     with pytest.raises(ConfigError, match=r"lambda_sw must be a finite number >= 0") as e:
         load_scenario_text(text, path)
     assert str(path) in str(e.value)
+    # its unit reads as one (was: '>= 0 1 (the cost is normalised, eq 5)' on the PMSM)
+    assert re.search(r">= 0 (N·m|p\.u\. \(eq 5's cost is normalised\)), got", str(e.value)), e.value
 
 
 def test_a_switching_effort_is_refused_where_no_finite_control_set_chooses():

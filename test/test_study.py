@@ -59,6 +59,10 @@ def test_reproduce_says_what_it_does_and_keeps_bags_only_when_asked(capsys, tmp_
         "paper's; not comparable with the paper"
     ) in out
     assert "bags" not in out
+    # the window used, everywhere (was: 'window 0.05-6 s' in the header, 'over 0.05-6 s' below)
+    assert "Table 2, window 0.05-0.06 s (the paper's: 0.05-6 s)" in out
+    assert "against the reference in force at k over 0.05-0.06 s (the paper's: 0.05-6 s);" in out
+    assert "0.05-6 s;" not in out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tmp"]
     assert not list((tmp_path / "tmp").glob("predictive_drive_study_*"))
 

@@ -310,8 +310,8 @@ def command_for_step(data: bytes, *, k: int, t: float, u_dc: Callable[[], float]
     for name, wrong, shown, why in (
         ("k", cmd.k != k, f"{cmd.k:g}",
          f"the command for another step (the plant waits for step {k})"),
-        ("t", cmd.t != t, repr(cmd.t),
-         f"a command carries the time of the state it answers (state {k}: t = {t!r} s)"),
+        ("t", cmd.t != t, repr(float(cmd.t)),  # a number as a number, not np.float64(...)
+         f"a command carries the time of the state it answers (state {k}: t = {float(t)!r} s)"),
     ):  # fmt: skip
         if wrong:
             raise CommandError(f"step {k}: field {name!r} = {shown}: {why}", field=name, k=cmd.k)

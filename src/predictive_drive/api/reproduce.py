@@ -377,13 +377,14 @@ def reproduce_table(
     drawn = []
     if figures is not None:
         drawn = compare([str(r.bag) for r in rows], figures=figures).figures
+    used = "; ".join(f"{lo:.4g}-{hi:.4g} s" for lo, hi in runner.windows[scenario])
     return PaperTableResult(
         scenario,
         runner.engine,
         runner.duration,
         settings,
-        table.caption,
-        table.how,
+        table.text(table.caption, used),
+        table.text(table.how, used),
         table.columns,
         rows,
         drawn,

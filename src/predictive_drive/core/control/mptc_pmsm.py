@@ -351,7 +351,7 @@ class PMSMControllerParams:
         nan_default="1 % of rated torque",
         default=NAN,
     )
-    lambda_sw: float = lambda_sw_field("1 (the cost is normalised, eq 5)")
+    lambda_sw: float = lambda_sw_field("p.u. (eq 5's cost is normalised)")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
     delay_compensation: bool = delay_compensation()
 
