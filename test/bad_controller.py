@@ -1,8 +1,10 @@
 """A torque controller node of one's own that misbehaves at one step, for the tests of what the
 graph does then (test_external.py): ``bad_controller.py MODE STEP --ros-args ...``. Until STEP it
 answers every state with V1 for the whole period (s_a, s_b, s_c = 1, 0, 0); at STEP it does what
-MODE says (``slow_start``: command 0 comes 4 s late, then all is well; ``no_exit``: all is well,
-but it does not exit after the last command, and ``stubborn`` besides ignores SIGTERM).
+MODE says (``slow_start``: command 0 comes 4 s late, then all is well; ``silent``: it never
+answers again, idle; ``busy``: it never answers again, computing all the while; ``no_exit``: all is well,
+but it does not exit after the last command, and ``stubborn`` besides ignores SIGTERM; ``deaf``
+ignores SIGINT and SIGTERM from the start, and stays when its peers are gone).
 rclpy and std_msgs only, as a user's node."""
 
 from __future__ import annotations
@@ -97,6 +99,11 @@ class BadController(Node):
             if self.mode == "silent":
                 self.k = -1  # never answers again
                 return
+            if self.mode == "busy":  # computes and computes (a search that exploded)
+                while rclpy.ok():
+                    sum(range(10_000))
+                self.k = -1
+                return
             if self.mode == "exit0":  # as a node that believes the run is over
                 raise SystemExit(0)
             if self.mode in BURSTS:  # the commands of the steps to come, all at once
@@ -117,8 +124,10 @@ class BadController(Node):
 def main() -> int:
     mode, at = sys.argv[1], int(sys.argv[2])
     rclpy.init(args=sys.argv)
-    if mode == "stubborn":  # after rclpy's own handlers are in
+    if mode in ("stubborn", "deaf"):  # after rclpy's own handlers are in
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if mode == "deaf":
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     node = BadController(mode, at)
     try:
         while rclpy.ok() and not node.done:
@@ -126,7 +135,7 @@ def main() -> int:
         node.pub.wait_for_all_acked()
         # the run is over; it stays all the same, until SIGTERM (rclpy's handler shuts the
         # context down) or, stubborn, for good
-        while mode == "stubborn" or (mode == "no_exit" and rclpy.ok()):
+        while mode in ("stubborn", "deaf") or (mode == "no_exit" and rclpy.ok()):
             time.sleep(0.1)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass

@@ -15,6 +15,7 @@ import shlex
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -485,8 +486,23 @@ def test_a_controller_that_stops_answering_is_named_by_the_plant(tmp_path):
     assert r.returncode == 2, r.stderr
     assert "predictive-drive: error: /drive/plant: no /drive/command for step 100 from " \
         "/drive/torque_controller within 2.0 s; the run was stopped (plant, pid" in r.stderr  # fmt: skip
+    assert "busy" not in r.stderr
     trace, _ = read_bag(tmp_path / "silent")
     assert list(trace.state[:, 0]) == list(range(101)) and trace.command.shape[0] == 100
+
+
+@pytest.mark.process
+def test_a_busy_controller_is_called_busy_not_hung(tmp_path):
+    """A controller that computes past the peer timeout (a search that exploded) is said to be
+    busy, with the CPU time it used, and where to give it longer (was: the same line as for a
+    hung one); an idle silent one is not (above)."""
+    r = _run_bad("busy", tmp_path / "busy")
+    assert r.returncode == 2, r.stderr
+    assert re.search(
+        r"/drive/plant: no /drive/command for step 100 from /drive/torque_controller within "
+        r"2\.0 s; torque_controller \(pid \d+\) was busy, not hung: it used [\d.]+ s of CPU in "
+        r"the last [\d.]+ s \(a step that long: --peer-timeout S waits longer\)", r.stderr
+    ), r.stderr  # fmt: skip
 
 
 @pytest.mark.process
@@ -658,3 +674,36 @@ def test_a_value_no_ros_parameter_can_hold_is_refused_before_anything_starts(val
         run("im_short", external={"torque_controller": "true"}, out=tmp_path / "b",
             settings={"torque_controller.my_key": value})  # fmt: skip
     assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.process
+def test_a_stop_says_which_node_it_waits_for_and_how_long(tmp_path):
+    """Your controller ignores the stop: after a Ctrl-C the command says, within seconds, that
+    it waits for the torque controller (its pid), for how long, and what comes then (was: one
+    line, 'the nodes finish what is in flight', and a minute of silence)."""
+    p = subprocess.Popen(
+        [*CLI, "run", "im_short", "--duration", "30", "--out", str(tmp_path / "bag"),
+         "--external", f"torque_controller={BAD} deaf 9999999"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    pid = 0
+    try:
+        pid = int(re.search(r"torque_controller pid (\d+)", p.stderr.readline()).group(1))
+        wait_until(lambda: bag_bytes(tmp_path / "bag") > 100_000, "the run did not start",
+                   timeout=60)  # fmt: skip
+        p.send_signal(signal.SIGINT)
+        t0 = time.monotonic()
+        said = ""
+        while "still waiting" not in said and time.monotonic() - t0 < 30:
+            said += p.stderr.readline()
+        assert re.search(
+            rf"still waiting for torque_controller \(pid {pid}\) to end after SIGINT: up to "
+            r"\d+ s more, then SIGTERM \(Ctrl-C again: SIGTERM now\)", said
+        ), said  # fmt: skip
+        assert time.monotonic() - t0 < 15
+        p.kill()  # enough: the node ends with its launcher (SIGKILL 5 s after the ignored SIGTERM)
+        wait_until(lambda: ended(pid), "the node outlived its launcher", timeout=30)
+    finally:
+        end_all([p])
+        if pid and not ended(pid):
+            os.kill(pid, signal.SIGKILL)

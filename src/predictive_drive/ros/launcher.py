@@ -13,6 +13,7 @@ import shlex
 import subprocess
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,7 @@ from .processes import (
     AGAIN,
     SharedMemory,
     command_line,
+    cpu_seconds,
     end_own_nodes,
     ended_how,
     ending_with_this_process,
@@ -167,7 +169,7 @@ def run_graph(
                 file=sys.stderr,
                 flush=True,
             )
-            _watch(children, watcher, bag, sc.run.steps)
+            _watch(children, watcher, bag, sc.run.steps, peer_timeout)
         except KeyboardInterrupt:
             write_stop_reason(logs, "interrupted (Ctrl-C)")
             # each line is printed once further presses are counted: a press that answers it
@@ -229,6 +231,9 @@ class _Children:
         self.stops: dict[str, list[tuple[float, float]]] = {}  #: (from, to), time.monotonic()
         self._sample_at = 0.0
         self.abandoned = False  #: a repeated Ctrl-C left children to close on their own
+        #: each child's CPU time, sampled every second: (time.monotonic(), s of CPU), the last
+        #: minute (a node named silent that was computing the whole time is busy, not hung)
+        self.cpu: dict[str, deque[tuple[float, float]]] = {n: deque(maxlen=60) for n in procs}
 
     def tick(self) -> None:
         """Look at every child once (the watch loop's period)."""
@@ -243,7 +248,22 @@ class _Children:
                 self.stops.setdefault(name, []).append((self._stopped_since.pop(name), now))
         if now >= self._sample_at:  # the files a node uses are made at start-up, mostly
             self.shm.sample([p.pid for p in self.procs.values() if p.poll() is None])
+            for name, p in self.procs.items():
+                used = cpu_seconds(p.pid) if p.poll() is None else None
+                if used is not None:
+                    self.cpu.setdefault(name, deque(maxlen=60)).append((now, used))
             self._sample_at = now + 1.0
+
+    def busy(self, name: str, span: float) -> tuple[float, float] | None:
+        """(CPU s, wall s) node ``name`` used over about the last ``span`` s it was sampled,
+        where it computed most of that time (None: idle, or not sampled long enough)."""
+        samples = list(self.cpu.get(name, ()))
+        if len(samples) < 2:
+            return None
+        last_t, last_cpu = samples[-1]
+        first_t, first_cpu = next(((t, c) for t, c in samples if last_t - t <= span), samples[0])
+        wall, used = last_t - first_t, last_cpu - first_cpu
+        return (used, wall) if wall >= 1.0 and used >= 0.5 * wall else None
 
     def stopped(self) -> dict[str, float]:
         """Children stopped (by SIGSTOP, a debugger) long enough, recently enough, to have made
@@ -287,7 +307,13 @@ class _Children:
         }
 
 
-def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path, planned: int) -> None:
+def _watch(
+    children: _Children,
+    watcher: _ClockWatcher | None,
+    bag: Path,
+    planned: int,
+    peer_timeout: float = 10.0,
+) -> None:
     """Wait for the children; follow /clock for progress and timed strategy switches. When one
     ends the run early (it failed, was killed, was stopped from outside, or is the user's and
     exited before its last message), say why to the recorder (:func:`~.placement.stop_reason`),
@@ -313,6 +339,7 @@ def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path, planne
         if early or own_early:
             seen = time.time()
             why, how, name = _cause(children, seen, early, own_early)
+            why += _busy_note(children, why, peer_timeout)
             write_stop_reason(children.logs, why)
             # a child killed outright never acknowledges what its peers sent it, nor does one
             # that left before its last message, nor a user's node that failed (it may have
@@ -335,6 +362,24 @@ def _watch(children: _Children, watcher: _ClockWatcher | None, bag: Path, planne
                 )
             cause = f"{why}; the run was stopped" + (f" ({how})" if how else "")
             raise GraphError(_failure_report(children, status, cause, name))
+
+
+def _busy_note(children: _Children, why: str, peer_timeout: float) -> str:
+    """Where ``why`` names a node that did not answer in time (``no /drive/command for step K
+    from /drive/torque_controller``) and that node was computing all that while: say it was
+    busy, not hung, and how to give it longer ('' otherwise)."""
+    named = re.search(r"^\S+: no \S+ for step \d+ from /\S+/(\w+)", why)
+    if named is None or named[1] not in children.procs:
+        return ""
+    busy = children.busy(named[1], peer_timeout)
+    if busy is None:
+        return ""
+    used, wall = busy
+    pid = children.procs[named[1]].pid
+    return (
+        f"; {named[1]} (pid {pid}) was busy, not hung: it used {used:.1f} s of CPU in the "
+        f"last {wall:.1f} s (a step that long: --peer-timeout S waits longer)"
+    )
 
 
 def _cause(

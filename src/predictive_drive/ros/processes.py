@@ -34,6 +34,7 @@ __all__ = [
     "end_own_nodes",
     "ended_how",
     "STOP_GRACE",
+    "cpu_seconds",
     "TERM_GRACE",
     "SharedMemory",
     "domains_in_use",
@@ -116,11 +117,23 @@ STOP_GRACE = 45.0
 TERM_GRACE = 15.0
 
 
+#: s a stop waits for children before it says which it still waits for, and how long
+SAY_WAITING = 5.0
+
 #: what a second Ctrl-C while children close does
 AGAIN = (
     "predictive-drive: interrupted again: asking the nodes to finish quickly (Ctrl-C once more "
     "leaves them to close on their own)"
 )
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """CPU time (user + system, s) process ``pid`` has used, all its threads (None: gone)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 def is_stopped(pid: int) -> bool:
@@ -159,7 +172,9 @@ def stop_processes(
                     os.kill(p.pid, sig)
                 except ProcessLookupError:
                     pass
-            if _wait_for(alive, wait, _pressed_since(presses, acted)) and sig != signal.SIGKILL:
+            then = {signal.SIGINT: "SIGTERM", signal.SIGTERM: "SIGKILL"}.get(sig)
+            pressed = _pressed_since(presses, acted)
+            if _wait_for(alive, wait, pressed, sent=sig.name, then=then) and sig != signal.SIGKILL:
                 acted += 1
                 if sig != signal.SIGINT:
                     break  # pressed again while they finish quickly: leave them to it
@@ -214,14 +229,33 @@ def _pressed_since(presses: list[int], before: int) -> Callable[[], bool]:
 
 
 def _wait_for(
-    alive: dict[str, subprocess.Popen[bytes]], wait: float, pressed: Callable[[], bool]
+    alive: dict[str, subprocess.Popen[bytes]],
+    wait: float,
+    pressed: Callable[[], bool],
+    *,
+    sent: str = "",
+    then: str | None = None,
 ) -> bool:
-    """Wait up to ``wait`` s for ``alive`` to end; True when ``pressed()`` cut it short."""
-    deadline = time.monotonic() + wait
+    """Wait up to ``wait`` s for ``alive`` to end; True when ``pressed()`` cut it short. After
+    :data:`SAY_WAITING` s it names the children it still waits for (``sent`` them, ``then``
+    next: a node of one's own may ignore a signal, and a silent minute is no answer)."""
+    start = time.monotonic()
+    deadline = start + wait
     said = set()
     while time.monotonic() < deadline and any(p.poll() is None for p in alive.values()):
         if pressed():
             return True
+        now = time.monotonic()
+        if then and now - start > SAY_WAITING and "waiting" not in said:
+            said.add("waiting")
+            names = ", ".join(f"{n} (pid {p.pid})" for n, p in alive.items() if p.poll() is None)
+            again = f"{then} now" if then == "SIGTERM" else "leave it to end on its own"
+            print(
+                f"predictive-drive: still waiting for {names} to end after {sent}: up to "
+                f"{deadline - now:.0f} s more, then {then} (Ctrl-C again: {again})",
+                file=sys.stderr,
+                flush=True,
+            )
         for n, p in alive.items():
             if n not in said and p.poll() is None and is_stopped(p.pid):
                 said.add(n)
