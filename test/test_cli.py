@@ -228,6 +228,22 @@ def test_the_run_printout_says_what_its_lines_are(capsys, tmp_path, monkeypatch)
     assert after.strip() == (
         "the recorder's verdict; its figures cover the whole run, T_RMSE above the window"
     )
+    assert " cont " not in out  # no period means recorded: no continuous-time figures
+
+
+def test_run_and_report_print_the_figures_the_fronts_rank_by(capsys, tmp_path, monkeypatch):
+    """With the plant's period means (the steady points record them) run and report print the
+    continuous-time figures, aligned with the rest (was: only compare and --json had them)."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli(
+        ["run", "im_steady", "--engine", "inprocess", "--duration", "0.1", "--out", "b"], capsys
+    )
+    assert code == 0, err
+    code, again, err = run_cli(["report", "b"], capsys)
+    for text in (out, again):
+        lines = {line[:16].strip(): line for line in text.splitlines() if line.startswith("  ")}
+        assert {"T_RMSE cont", "T_ripple cont", "THD_i cont"} <= set(lines), text
+        assert lines["T_ripple cont"].index("N·m") == lines["T_RMSE"].index("N·m")
 
 
 MISSING = """\

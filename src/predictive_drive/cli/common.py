@@ -176,6 +176,8 @@ class _Recording(Protocol):
 
 #: the metrics ``run`` and ``report`` print, in order (how each is shown: core.metrics.METRICS)
 SHOWN = ("t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "cal_ave", "deadbeat_share", "speed_rmse")
+#: printed beside them where the plant recorded its period means (the figures fronts rank by)
+CONTINUOUS = ("t_rmse_cont", "t_ripple_cont", "i_thd_cont")
 
 
 def print_recording(r: _Recording, wall_s: float | None = None) -> None:
@@ -193,25 +195,28 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         "it (the scenario's, cut to the run)"
     )
     rows = [(METRICS[k], getattr(m, k)) for k in SHOWN]
+    if any(math.isfinite(getattr(m, k)) for k in CONTINUOUS):  # plant.period_means on
+        rows += [(METRICS[k], getattr(m, k)) for k in CONTINUOUS]
     rows.append((METRICS["compute_ns_median"], m.compute_ns_median))
+    w = max(11, *(len(shown.title) + 1 for shown, _ in rows))  # the titles' column
     for shown, value in rows:
-        print(f"  {shown.title:<11}{shown.with_unit(value):>16}   {shown.description}")
+        print(f"  {shown.title:<{w}}{shown.with_unit(value):>16}   {shown.description}")
     if m.thd == m.thd:  # NaN: no THD window
         shown = METRICS["thd"]
         harmonics = METRICS["thd_harmonics"].format(m.thd_harmonics)
         print(
-            f"  {shown.title:<11}{shown.format(m.thd) + ' %':>16}   phase-a distortion, "
+            f"  {shown.title:<{w}}{shown.format(m.thd) + ' %':>16}   phase-a distortion, "
             f"{m.thd_cycles} cycles of {m.thd_fundamental_hz:.1f} Hz (harmonics alone "
             f"{harmonics} %)"
         )
     if all(math.isfinite(u) for u in m.utilization) and any(m.utilization):
         util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m.utilization))
-        print(f"  {'vectors':<11}{util}   {METRICS['utilization'].description}")
+        print(f"  {'vectors':<{w}}{util}   {METRICS['utilization'].description}")
     d = r.details
     if len(d.strategies) > 1:
         for sp in d.strategies:
             print(
-                f"  {'strategy':<11}{sp.strategy:>16}   steps {sp.first}-{sp.last} "
+                f"  {'strategy':<{w}}{sp.strategy:>16}   steps {sp.first}-{sp.last} "
                 f"({sp.t_start:g}-{sp.t_end:g} s)"
             )
     from ..config import YOURS_KEEPS
@@ -220,19 +225,19 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         model = {k: v for k, v in node.parameters.items() if k.split(".")[0] in YOURS_KEEPS}
         mine = {k: v for k, v in node.parameters.items() if k not in model}
         given = ", ".join(f"{k}={v}" for k, v in mine.items()) or "none"
-        print(f"  {'your node':<11}{node.name}: {node.started}; parameters: {given}")
+        print(f"  {'your node':<{w}}{node.name}: {node.started}; parameters: {given}")
         if model and node.name == "torque_controller":
             passed = ", ".join(f"{k}={v}" for k, v in model.items())
-            print(f"  {'':<11}and, passed by the launcher (the controller's model): {passed}")
+            print(f"  {'':<{w}}and, passed by the launcher (the controller's model): {passed}")
     if d.outcome:
-        print(f"  {'outcome':<11}{d.outcome}")
+        print(f"  {'outcome':<{w}}{d.outcome}")
         print(
-            f"  {'':<11}the recorder's verdict; its figures cover the whole run, T_RMSE above "
+            f"  {'':<{w}}the recorder's verdict; its figures cover the whole run, T_RMSE above "
             "the window"
         )
     for e in d.parameter_events:
         changes = ", ".join(f"{k} = {v}" for k, v in e.changed.items())
-        print(f"  {'parameter':<11}{e.t:>14.6g} s   {e.node}: {changes}")
+        print(f"  {'parameter':<{w}}{e.t:>14.6g} s   {e.node}: {changes}")
     for st in d.load_steps:
         print(
             f"  load {st.load_torque:g} N·m from {st.t_start:g} s: current angle "
