@@ -66,6 +66,27 @@ def wait_until(
         time.sleep(every)
 
 
+def readline_within(stream, timeout: float) -> str:  # noqa: ANN001 - a text pipe
+    """The next line of a process's text pipe, or fail after ``timeout`` s without one (a plain
+    readline waits for ever on a process that says nothing more and does not end). Reads the
+    raw descriptor a byte at a time, so nothing is buffered past the line."""
+    import os
+    import select
+
+    fd, line = stream.fileno(), b""
+    deadline = time.monotonic() + timeout
+    while not line.endswith(b"\n"):
+        left = deadline - time.monotonic()
+        assert left > 0 and select.select([fd], [], [], left)[0], (
+            f"no line within {timeout} s (so far: {line!r})"
+        )
+        byte = os.read(fd, 1)
+        if not byte:
+            break  # the process ended
+        line += byte
+    return line.decode()
+
+
 def bag_bytes(bag: Path) -> int:
     """How many bytes the bag's .mcap file holds so far (0 before it exists)."""
     files = list(Path(bag).glob("*.mcap"))

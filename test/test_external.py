@@ -28,7 +28,15 @@ from predictive_drive.config import load_scenario
 from predictive_drive.core.signals import EXTERNAL
 from predictive_drive.errors import ConfigError
 from predictive_drive.readback import read_bag
-from procs import assert_placed, bag_bytes, end_all, ended, kill_if_running, wait_until
+from procs import (
+    assert_placed,
+    bag_bytes,
+    end_all,
+    ended,
+    kill_if_running,
+    readline_within,
+    wait_until,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "dtc_im"
@@ -688,14 +696,15 @@ def test_a_stop_says_which_node_it_waits_for_and_how_long(tmp_path):
     )  # fmt: skip
     pid = 0
     try:
-        pid = int(re.search(r"torque_controller pid (\d+)", p.stderr.readline()).group(1))
+        line = readline_within(p.stderr, 60)
+        pid = int(re.search(r"torque_controller pid (\d+)", line).group(1))
         wait_until(lambda: bag_bytes(tmp_path / "bag") > 100_000, "the run did not start",
                    timeout=60)  # fmt: skip
         p.send_signal(signal.SIGINT)
         t0 = time.monotonic()
         said = ""
-        while "still waiting" not in said and time.monotonic() - t0 < 30:
-            said += p.stderr.readline()
+        while "still waiting" not in said:
+            said += readline_within(p.stderr, 30)
         assert re.search(
             rf"still waiting for torque_controller \(pid {pid}\) to end after SIGINT: up to "
             r"\d+ s more, then SIGTERM \(Ctrl-C again: SIGTERM now\)", said

@@ -22,7 +22,7 @@ from predictive_drive.bag import iter_messages
 from predictive_drive.codec import CODECS
 from predictive_drive.config import load_scenario
 from predictive_drive.interface import TOPICS
-from procs import bag_bytes, kill_if_running, wait_until
+from procs import bag_bytes, kill_if_running, readline_within, wait_until
 
 pytestmark = pytest.mark.process
 
@@ -117,6 +117,38 @@ def test_a_subscriber_running_before_the_replay_gets_every_message(recording, wa
             kill_if_running(listener)
     got = json.loads(out.strip().splitlines()[-1])
     assert got == {"count": states, "first": 0, "last": states - 1, "in_order": True}, (got, err)
+
+
+def test_wait_for_says_the_count_as_it_changes(recording):
+    """replay --wait-for 2: the count of matched subscribers is said again as it changes (was:
+    once, 'now 0', and never again), and the replay goes on once two have matched."""
+    from predictive_drive.ros.processes import isolated_domain
+
+    with isolated_domain() as domain:
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+        player = subprocess.Popen(
+            [*CLI, "replay", str(recording), "--topics", "/drive/state", "--wait-for", "2"],
+            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+            start_new_session=True,
+        )  # fmt: skip
+        listeners = []
+        try:
+            for count in (0, 1):
+                assert (
+                    readline_within(player.stderr, 30)
+                    .strip()
+                    .endswith(
+                        f"replay waits for 2 subscriber(s) of each played topic (now {count}; "
+                        "Ctrl-C gives up)"
+                    )
+                )
+                listeners.append(Listener(domain, {"/drive/state": "/drive/state"}))
+            player.wait(timeout=60)
+            assert player.returncode == 0, player.stderr.read()
+        finally:
+            kill_if_running(player)
+            for listener in listeners:
+                listener.close()
 
 
 @pytest.mark.parametrize("rate", [1.0, 0.1])

@@ -299,13 +299,13 @@ def _matched(node: PlayerNode, ex: Any, wait_for: int | None) -> None:
 
     start = time.perf_counter()
     if wait_for is not None:
-        said = False
-        while min(counts(), default=wait_for) < wait_for:
-            if not said and time.perf_counter() - start > 1.0:
-                said = True
+        said: int | None = None  # the count last said: said again as it changes
+        while (matched := min(counts(), default=wait_for)) < wait_for:
+            if matched != said and time.perf_counter() - start > 1.0:
+                said = matched
                 print(
                     f"predictive-drive: replay waits for {wait_for} subscriber(s) of each played "
-                    f"topic (now {min(counts())}; Ctrl-C gives up)",
+                    f"topic (now {matched}; Ctrl-C gives up)",
                     file=sys.stderr,
                     flush=True,
                 )
