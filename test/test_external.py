@@ -573,6 +573,31 @@ def test_replaying_the_example_into_itself_gives_its_commands_bit_for_bit(dtc_ru
 
 
 @pytest.mark.process
+def test_replay_into_your_node_takes_its_parameters_and_says_whose_figures(tmp_path):
+    """replay --into with --set: your node gets the key (and of our section the controller's
+    model alone); the new bag records them; a node that publishes no vector agrees on none
+    ('-', was 0.00 %); report says its plant's figures are the recording's (was: f_sw under
+    your label, unexplained)."""
+    from predictive_drive.api.replay import replay_into
+
+    source = tmp_path / "db_mptc"
+    run_inprocess_to_bag(load_scenario("im_short", duration=0.02), source)
+    d = replay_into(source, command=DTC, out=tmp_path / "into", label="band",
+                    settings={"torque_controller.torque_band": 0.2})  # fmt: skip
+    assert math.isnan(d.vector_agreement) and d.strategy == "external:band"
+    _, info = read_bag(d.bag)
+    (node,) = info.own_nodes
+    assert {k.split(".")[0] for k in node.parameters} == {"motor", "torque_band"}
+    assert node.parameters["torque_band"] == 0.2
+    said = (d.bag / "logs" / "torque_controller.log").read_text()
+    assert "torque band 0.2 N·m" in said, said
+    rep = subprocess.run([*CLI, "report", str(d.bag)], capture_output=True, text=True, timeout=60)
+    assert f"replay   of {source.resolve()}: its states were fed to this controller" in rep.stdout
+    with pytest.raises(ConfigError, match="--set plant.u_dc: replay --into runs the "):
+        replay_into(source, command=DTC, out=tmp_path / "x", settings={"plant.u_dc": 10.0})
+
+
+@pytest.mark.process
 def test_the_example_builds_with_colcon_and_its_executable_is_the_controller(tmp_path):
     """The example is an ament_python package as a user's would be: `colcon build` of a
     workspace holding it alone installs `lib/dtc_im/dtc_node`; that executable, with the

@@ -34,12 +34,15 @@ def replay(bag: str | Path, **options: Any) -> PlayResult:
 def replay_into(
     bag: str | Path, *, node: str = "torque_controller", strategy: str | None = None,
     out: str | Path | None = None, command: str | None = None, label: str | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> StepResult:  # fmt: skip
     """Feed ``bag`` into a ``node`` process step by step (see
     :mod:`predictive_drive.ros.stepper`) and record the result; says how the new decisions agree
     with the recorded ones, the controller's compute time and the pace. ``command``: a node of
     the user's own to feed instead of ours (docs/ros.md#writing-your-own-controller), named
-    ``external:label`` in the new bag."""
+    ``external:label`` in the new bag; ``settings``: parameters of the controller replayed into
+    (``torque_controller.KEY``: any key for the user's node, the family's for ours), recorded
+    in the new bag as a run's are."""
     from ..bag import claim_bag_dir
     from ..ros.processes import command_line
     from ..ros.stepper import replay_into as step
@@ -50,6 +53,11 @@ def replay_into(
         raise ConfigError(f"--into {node}={command}: your node has no --strategy")
     if command is not None:  # a typo is said before anything starts
         command_line(command, option=f"--into {node}=")
+    for key in settings or {}:
+        if not key.startswith(f"{node}."):
+            raise ConfigError(
+                f"--set {key}: replay --into runs the {node} alone; its parameters are {node}.KEY"
+            )
     if label is not None:
         if command is None:
             raise ConfigError(f"--label {label}: names your own node: give --into {node}=COMMAND")
@@ -60,4 +68,6 @@ def replay_into(
         into = "own" if command else strategy or "recorded"
         out = source.resolve().parent / f"{source.resolve().name}_into_{label or into}_{stamp}"
     with claim_bag_dir(out) as target:
-        return step(source, target, strategy=strategy, command=command, label=label)
+        return step(
+            source, target, strategy=strategy, command=command, label=label, settings=settings
+        )

@@ -171,6 +171,9 @@ class RecordingDetails:
     load_steps: list[LoadStep] = field(default_factory=list)
     #: the nodes of the user's own: how each was started, the parameters its section gave it
     own_nodes: list[OwnNode] = field(default_factory=list)
+    #: a replay into a controller (``replay --into``): the recording whose states it was fed
+    #: ('' for a run). Its plant's figures are that recording's; its commands are the node's
+    replay_of: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -178,6 +181,7 @@ class RecordingDetails:
             "parameter_events": [dataclasses.asdict(e) for e in self.parameter_events],
             "outcome": self.outcome,
             "own_nodes": [dataclasses.asdict(n) for n in self.own_nodes],
+            "replay_of": self.replay_of,
         }
         if self.load_steps:
             out["load_steps"] = [
@@ -201,6 +205,7 @@ def details_of(ev: Evaluation) -> RecordingDetails:
         outcome=ev.info.custom.get("outcome", ""),
         load_steps=steps_of(ev),
         own_nodes=ev.info.own_nodes,
+        replay_of=ev.info.info.get("replay_of", ""),
     )
 
 

@@ -194,6 +194,13 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         f"window   {m.t_start:.4g}-{m.t_end:.4g} s ({m.steps} steps)   the figures below are over "
         "it (the scenario's, cut to the run)"
     )
+    if r.details.replay_of:  # the states were the recording's: only the commands are the node's
+        print(
+            f"replay   of {r.details.replay_of}: its states were fed to this controller, whose "
+            "commands were recorded, not applied; T_RMSE, psi_RMSE, f_ave, f_sw, speed_RMSE, THD "
+            "and the continuous figures are that recording's plant's, Cal_ave, deadbeat, "
+            "compute and vectors this controller's"
+        )
     rows = [(METRICS[k], getattr(m, k)) for k in SHOWN]
     if any(math.isfinite(getattr(m, k)) for k in CONTINUOUS):  # plant.period_means on
         rows += [(METRICS[k], getattr(m, k)) for k in CONTINUOUS]

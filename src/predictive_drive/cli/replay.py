@@ -8,7 +8,7 @@ import sys
 
 from ..api.replay import replay, replay_into
 from ..core.metrics import METRICS
-from .common import refuse, say_json
+from .common import refuse, say_json, single_settings
 
 HELP = (
     "publish a recording onto ROS topics with its QoS, paced by its log time (as ros2 bag play "
@@ -17,7 +17,7 @@ HELP = (
 #: the options of playing onto topics, and of replaying into a node
 PLAY_OPTIONS = ("rate", "start_offset", "playback_duration", "loop", "topics", "exclude_topics",
                 "remap", "clock", "start_paused", "wait_for")  # fmt: skip
-INTO_OPTIONS = ("strategy", "out", "label")
+INTO_OPTIONS = ("strategy", "out", "label", "set")
 
 
 def _remap(text: str) -> tuple[str, str]:
@@ -69,6 +69,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--label",
         metavar="NAME",
         help="with =COMMAND: your controller's name, external:NAME in the new bag (as run --label)",
+    )
+    into.add_argument(
+        "--set",
+        action="append",
+        metavar="torque_controller.KEY=VALUE",
+        help="a parameter of the controller replayed into (repeatable): any key for your own "
+        "node (as run --set gives it), one of the family's for ours",
     )
 
 
@@ -123,7 +130,7 @@ def _into(a: argparse.Namespace) -> int:
     node, sep, command = a.into.partition("=")
     d = replay_into(
         a.bag, node=node, strategy=a.strategy, out=a.out, command=command if sep else None,
-        label=a.label,
+        label=a.label, settings=single_settings(a.set),
     )  # fmt: skip
     if a.json:
         return say_json(d)

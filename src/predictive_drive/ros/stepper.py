@@ -14,6 +14,7 @@ differ — read its agreement as "what it would have decided here", not as a clo
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 import time
@@ -27,8 +28,10 @@ import numpy as np
 
 from ..bag import LOGS_DIR, BagWriter
 from ..codec import CODECS, command_for_step, stamp_ns
+from ..config import apply_settings, for_your_controller, load_scenario_text
 from ..core.commands import CommandError
 from ..core.control import controller_class, strategy_names
+from ..core.scenario import Scenario
 from ..core.signals import (
     COMMAND_INDEX,
     EXTERNAL,
@@ -88,6 +91,27 @@ class StepResult:
         }
 
 
+def _with_settings(
+    sc: Scenario, source: str | Path, settings: dict[str, Any], *, yours: bool, first: str
+) -> Scenario:
+    """The recorded scenario as the controller replayed into gets it: a node of the user's own
+    gets of a section of ours the controller's model alone, and ``settings`` (checked for ours
+    as a run checks them)."""
+    where = f"{source} (stored scenario)"
+    text = for_your_controller(sc.text, where, settings) if yours else sc.text
+    if settings:
+        text = apply_settings(text, settings, where, own=["torque_controller"] if yours else ())
+    if text == sc.text:
+        return sc
+    own = sorted(sc.own | ({"torque_controller"} if yours else set()))
+    checked = load_scenario_text(
+        text, where, legacy=True, own=own, strategy=None if yours else first
+    )
+    return dataclasses.replace(
+        sc, text=text, controller=sc.controller if yours else checked.controller
+    )
+
+
 def replay_into(
     source: str | Path,
     out: Path,
@@ -95,12 +119,15 @@ def replay_into(
     strategy: str | None = None,
     command: str | None = None,
     label: str | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> StepResult:
     """Feed the recording ``source`` into a torque controller node step by step and record the
     result to ``out`` as it goes (the caller holds ``out``'s claim). ``strategy``: the one
     strategy to replay into (default: the recording's own, switched at the recorded steps);
     ``command``: a controller node of the user's own to start instead of ours (its command line;
-    ``--ros-args``, its name, namespace and parameter files appended), named ``external:label``.
+    ``--ros-args``, its name, namespace and parameter files appended), named ``external:label``;
+    ``settings``: the controller's parameters changed (``torque_controller.KEY``; a section of
+    ours that a node of one's own gets is cut to the controller's model first, as in a run).
     Interrupted (KeyboardInterrupt), the new bag is closed with every step replayed so far and
     :class:`~predictive_drive.errors.Interrupted` says what it holds."""
     from rclpy.parameter import Parameter
@@ -125,6 +152,7 @@ def replay_into(
             f"yours (--into torque_controller=COMMAND) or into one of ours (--strategy: "
             f"{', '.join(names)})"
         )
+    sc = _with_settings(sc, source, settings or {}, yours=command is not None, first=plan[0])
     out = out.resolve()
     logs = out / LOGS_DIR
     logs.mkdir(parents=True, exist_ok=True)
@@ -227,7 +255,9 @@ def replay_into(
     # the same vector, or no vector in either (field-oriented control: NaN); no agreement at all
     # where no recorded step picked a vector (nothing to agree with: NaN, shown "-")
     same_vector = [c[v] == r[v] or (c[v] != c[v] and r[v] != r[v]) for c, r in zip(commands, rec)]
-    picked = bool(np.isfinite(rec[:, v]).any())
+    # ... and none where the node replayed into picks none (a controller of one's own that does
+    # not say: was 0.00 %)
+    picked = bool(np.isfinite(rec[:, v]).any()) and any(c[v] == c[v] for c in commands)
     same_pulses = [tuple(c[PULSES]) == tuple(r[PULSES]) for c, r in zip(commands, rec)]
     # the median step's; a controller of one's own may not say (NaN)
     reported = sorted(t for c in commands if math.isfinite(t := c[COMMAND_INDEX.compute_ns]))
