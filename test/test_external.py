@@ -741,3 +741,22 @@ def test_a_stop_says_which_node_it_waits_for_and_how_long(tmp_path):
         end_all([p])
         if pid and not ended(pid):
             os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.process
+def test_bench_times_your_controller_beside_ours(capsys):
+    """bench --external torque_controller=COMMAND --label NAME: the graph with your node timed in
+    the same call as the graph with ours (was: only the example, by its key); a command that
+    cannot start is refused first."""
+    r = subprocess.run(
+        [*CLI, "bench", "--quick", "--no-horizons", "--json", "--label", "dtc",
+         "--external", f"torque_controller={DTC}"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["ros_steps_per_s"] > 0 and d["ros_external_dtc_steps_per_s"] > 0
+    assert "composed_steps_per_s" not in d  # only ours beside it
+    r = subprocess.run([*CLI, "bench", "--quick", "--external", "torque_controller=/no/such"],
+                       capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert r.returncode == 2 and "'/no/such' does not exist" in r.stderr, r.stderr

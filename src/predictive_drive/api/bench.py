@@ -20,6 +20,7 @@ from ..config import load_scenario, scenario_with
 from ..core.control import strategy_names
 from ..core.metrics import compute_metrics
 from ..core.runner import run_inprocess
+from ..core.signals import EXTERNAL_PREFIX, external_name
 from ..errors import ConfigError
 from .report import evaluate
 from .run import run, run_inprocess_to_bag
@@ -102,6 +103,9 @@ class GraphRun:
     what: str
     #: the torque controller is the example of one's own (examples/dtc_im), run this long (s)
     example_dtc: float = 0.0
+    #: the torque controller is a node of the user's own started by this command (bench
+    #: --external), run 0.5 s
+    command: str = ""
 
 
 #: the graph runs of a full bench
@@ -118,7 +122,7 @@ GRAPH_RUNS = (
              "one process, recording on"),
     GraphRun("ros", "paired", "batch", "one_step", "ros_example_dtc_steps_per_s",
              "four processes, the torque controller examples/dtc_im (a user's rclpy node, "
-             "default executor), recording on", example_dtc=0.5),
+             "rclpy's EventsExecutor), recording on", example_dtc=0.5),
 )  # fmt: skip
 #: ``--quick``: the defaults of each engine, short runs (a smoke test of the figures, not a
 #: measurement)
@@ -265,6 +269,23 @@ def graph_runs(keys: Sequence[str]) -> tuple[GraphRun, ...]:
     return tuple(g for name, g in known.items() if name in wanted)
 
 
+def _with_external(
+    runs: tuple[GraphRun, ...], command: str, label: str | None
+) -> tuple[GraphRun, ...]:
+    """``runs`` and, beside them, the default graph with the user's torque controller started
+    by ``command`` (checked first, as run --external checks it)."""
+    from ..ros.processes import command_line
+
+    command_line(command, option="--external torque_controller=")
+    name = external_name(label or "torque_controller").removeprefix(EXTERNAL_PREFIX)
+    yours = GraphRun(
+        "ros", "paired", "batch", "one_step", f"ros_external_{name}_steps_per_s",
+        f"four processes, the torque controller your node `{command}`, recording on",
+        command=command,
+    )  # fmt: skip
+    return (*runs, yours)
+
+
 def bench(
     *,
     repeats: int = 3,
@@ -274,12 +295,19 @@ def bench(
     graph: Sequence[str] = (),
     horizons: bool = True,
     horizon_steps: int = 4000,
+    external: str | None = None,
+    label: str | None = None,
 ) -> Bench:
     """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests).
     ``quick``: one repeat of 2,000 steps, horizons over 200 and 0.3 s graph runs of the
     default engines; ``graph``: only these graph runs (see :func:`graph_runs`). ``horizons``:
-    time the long-horizon laws (:data:`HORIZON_RUNS`) over ``horizon_steps`` each."""
+    time the long-horizon laws (:data:`HORIZON_RUNS`) over ``horizon_steps`` each.
+    ``external``: the command of a torque controller of the user's own, timed in the graph
+    beside ours (the ``ros`` run, and only it unless ``graph`` says more), its figure keyed
+    ``ros_external_LABEL``."""
     chosen = graph_runs(graph) if graph else QUICK_RUNS if quick else GRAPH_RUNS
+    if external is not None:
+        chosen = _with_external(graph_runs(graph or ["ros"]), external, label)
     if quick:
         repeats, steps, horizon_steps = 1, 2000, 200
     if repeats < 1:
@@ -313,21 +341,23 @@ def bench(
     measured: list[GraphRate] = []
     if ros:
         for g in chosen:
-            external: dict[str, str | None] | None = None
+            yours: dict[str, str | None] | None = None
+            if g.command:
+                yours = {"torque_controller": g.command}
             if g.example_dtc:
                 command = example_dtc()
                 if command is None:
                     measured.append(GraphRate(g, None, math.nan))  # not here: no figure
                     continue
-                external = {"torque_controller": command}
+                yours = {"torque_controller": command}
             before = _core_rate(sc, steps)
             r = graph_rate(
                 g.engine,
                 affinity=g.affinity,
                 sched=g.sched,
                 speed_loop=g.speed_loop,
-                duration=0.3 if quick else g.example_dtc or 2.0,
-                external=external,
+                duration=0.3 if quick else g.example_dtc or (0.5 if g.command else 2.0),
+                external=yours,
             )
             near = (before + _core_rate(sc, steps)) / 2
             measured.append(GraphRate(g, r["steps_per_s"], r["startup_s"], near))

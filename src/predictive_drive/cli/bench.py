@@ -6,6 +6,7 @@ import argparse
 import math
 
 from ..api.bench import bench
+from ..errors import ConfigError
 from .common import refuse, say_json
 
 HELP = "throughput figures of this machine (compare them only as ratios within one call)"
@@ -27,13 +28,29 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="only these graph runs, by key (ros, ros_immediate, ros_sched_other, ros_unpinned, "
         "composed, ros_example_dtc; the --json keys without _steps_per_s)",
     )
+    p.add_argument(
+        "--external",
+        metavar="torque_controller=COMMAND",
+        help="also time your own torque controller in the graph, beside ours in the same call "
+        "(the ros run, and only the graph runs --graph names besides); its figure is "
+        "ros_external_LABEL",
+    )
+    p.add_argument("--label", metavar="NAME", help="with --external: names its figure")
 
 
 def main(a: argparse.Namespace) -> int:
     if a.quick:
         refuse(a, "sets what --quick sets already (1 repeat of 2,000 steps)", "repeats", "steps")
     if a.no_ros:
-        refuse(a, "chooses graph runs, and --no-ros skips them all", "graph")
+        refuse(a, "chooses graph runs, and --no-ros skips them all", "graph", "external")
+    if a.external is None:
+        refuse(a, "names your controller's figure: give --external too", "label")
+    node, sep, command = (a.external or "").partition("=")
+    if a.external is not None and (node != "torque_controller" or not sep or not command):
+        raise ConfigError(
+            f"--external {a.external}: bench times a torque controller of your own: "
+            "--external torque_controller=COMMAND"
+        )
     d = bench(
         repeats=5 if a.repeats is None else a.repeats,
         steps=20000 if a.steps is None else a.steps,
@@ -41,6 +58,8 @@ def main(a: argparse.Namespace) -> int:
         quick=a.quick,
         graph=[k for k in (a.graph or "").split(",") if k],
         horizons=not a.no_horizons,
+        external=command or None,
+        label=a.label,
     )
     if a.json:
         return say_json(d)
