@@ -127,3 +127,17 @@ def test_a_ctrl_c_says_which_runs_finished_and_which_bags_it_cut(tmp_path):
     assert all(
         "cut at" in line and "closed (readable)" in line or "removed" in line for line in cut
     )
+
+
+def test_a_ctrl_c_between_sweeps_says_how_many_runs_had_finished(tmp_path, monkeypatch):
+    """Between two sweeps of a study (here right after the first): the same summary as inside
+    one, not 'error: interrupted' alone; the temporary folder goes all the same."""
+    from predictive_drive.errors import Interrupted
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    with pytest.raises(Interrupted, match=r"^interrupted: 2 of 2 runs of the study had finished "
+                       r"\(no table: it needs every run; --bags DIR keeps each run's bag\)$"):  # fmt: skip
+        with studying(None, duration=0.02, jobs=2) as s:
+            s.runs("im_short", [Case("mptc"), Case("db_mptc")])
+            raise KeyboardInterrupt
+    assert not list(tmp_path.glob("predictive_drive_study_*"))

@@ -192,13 +192,18 @@ def studying(
     progress: Callable[[int, int], None] | None = None,
 ) -> Iterator[StudyRuns]:
     """A study's :class:`StudyRuns`; ``bags``: the folder to keep its bags in, or None: the
-    bags the study needs go to a temporary folder, removed when it ends (however it ends)."""
+    bags the study needs go to a temporary folder, removed when it ends (however it ends). A
+    Ctrl-C between its sweeps says, as one inside a sweep does, how many runs had finished."""
     if bags is not None:
         check_output_dir(bags, option="--bags")
-        yield StudyRuns(Path(bags), True, engine, duration, jobs, scheduler, progress)
-        return
-    tmp = Path(tempfile.mkdtemp(prefix="predictive_drive_study_"))
+    folder = (
+        Path(bags) if bags is not None else Path(tempfile.mkdtemp(prefix="predictive_drive_study_"))
+    )
+    runner = StudyRuns(folder, bags is not None, engine, duration, jobs, scheduler, progress)
     try:
-        yield StudyRuns(tmp, False, engine, duration, jobs, scheduler, progress)
+        yield runner
+    except KeyboardInterrupt:
+        raise runner.interrupted(runner.done, []) from None
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if bags is None:
+            shutil.rmtree(folder, ignore_errors=True)
