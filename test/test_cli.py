@@ -47,7 +47,7 @@ REFUSED = [
     (["bench", "--quick", "--steps", "100"], "--steps sets what --quick sets already"),
     (["bench", "--no-ros", "--graph", "ros"], "--graph chooses graph runs, and --no-ros skips"),
     (["bench", "--graph", "ros,dtc"], "--graph dtc: not a graph run; one of ros, ros_immediate"),
-    (["run", "im_short", "--label", "dtc"], "--label dtc: names a torque controller of your own"),
+    (["run", "im_short", "--label", "dtc"], "--label dtc: names a node of your own"),
     (["run", "im_short", "--engine", "inprocess", "--startup-timeout", "3"],
      "--startup-timeout applies to the ROS engines only"),
     (["replay", "b", "--wait-for", "2", "--into", "torque_controller"],

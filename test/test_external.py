@@ -508,8 +508,9 @@ def test_a_busy_controller_is_called_busy_not_hung(tmp_path):
     assert r.returncode == 2, r.stderr
     assert re.search(
         r"/drive/plant: no /drive/command for step 100 from /drive/torque_controller within "
-        r"2\.0 s; torque_controller \(pid \d+\) was busy, not hung: it used [\d.]+ s of CPU in "
-        r"the last [\d.]+ s \(a step that long: --peer-timeout S waits longer\)", r.stderr
+        r"2\.0 s; torque_controller \(pid \d+\) was busy, not hung: computing at \d+ % of the "
+        r"launcher's looks over the last [\d.]+ s, [\d.]+ s of CPU \(a step that long: "
+        r"--peer-timeout S waits longer\)", r.stderr
     ), r.stderr  # fmt: skip
 
 

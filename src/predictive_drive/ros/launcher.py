@@ -37,7 +37,7 @@ from .processes import (
     AGAIN,
     SharedMemory,
     command_line,
-    cpu_seconds,
+    cpu_state,
     end_own_nodes,
     ended_how,
     ending_with_this_process,
@@ -213,6 +213,8 @@ STOP_BLAME = (1.0, 30.0)
 #: s the plant may take to end after a node of the user's own exited 0 (it does at once after
 #: the run's last state) before that node is said to have left before its last message
 OWN_EXIT_GRACE = 3.0
+#: s between the launcher's looks at its children's CPU time and state
+CPU_LOOK = 0.25
 
 
 class _Children:
@@ -231,9 +233,11 @@ class _Children:
         self.stops: dict[str, list[tuple[float, float]]] = {}  #: (from, to), time.monotonic()
         self._sample_at = 0.0
         self.abandoned = False  #: a repeated Ctrl-C left children to close on their own
-        #: each child's CPU time, sampled every second: (time.monotonic(), s of CPU), the last
-        #: minute (a node named silent that was computing the whole time is busy, not hung)
-        self.cpu: dict[str, deque[tuple[float, float]]] = {n: deque(maxlen=60) for n in procs}
+        #: each child's CPU time and whether it was running, looked at every CPU_LOOK s over the
+        #: last minute: (time.monotonic(), s of CPU, running) (a node named silent that was
+        #: computing the whole time is busy, not hung)
+        self.cpu: dict[str, deque[tuple[float, float, bool]]] = {}
+        self._cpu_at = 0.0
 
     def tick(self) -> None:
         """Look at every child once (the watch loop's period)."""
@@ -248,22 +252,27 @@ class _Children:
                 self.stops.setdefault(name, []).append((self._stopped_since.pop(name), now))
         if now >= self._sample_at:  # the files a node uses are made at start-up, mostly
             self.shm.sample([p.pid for p in self.procs.values() if p.poll() is None])
-            for name, p in self.procs.items():
-                used = cpu_seconds(p.pid) if p.poll() is None else None
-                if used is not None:
-                    self.cpu.setdefault(name, deque(maxlen=60)).append((now, used))
             self._sample_at = now + 1.0
+        if now >= self._cpu_at:
+            for name, p in self.procs.items():
+                look = cpu_state(p.pid) if p.poll() is None else None
+                if look is not None:
+                    kept = self.cpu.setdefault(name, deque(maxlen=round(60 / CPU_LOOK)))
+                    kept.append((now, *look))
+            self._cpu_at = now + CPU_LOOK
 
-    def busy(self, name: str, span: float) -> tuple[float, float] | None:
-        """(CPU s, wall s) node ``name`` used over about the last ``span`` s it was sampled,
-        where it computed most of that time (None: idle, or not sampled long enough)."""
-        samples = list(self.cpu.get(name, ()))
-        if len(samples) < 2:
+    def busy(self, name: str, span: float) -> tuple[float, float, float] | None:
+        """(CPU s, wall s, share of looks it was running) of node ``name`` over about the last
+        ``span`` s, where it was computing most of that time: running (or waiting for a CPU)
+        at half the looks or more, or using half a CPU or more (None: it waited, idle, or was
+        not looked at long enough)."""
+        looks = [x for x in self.cpu.get(name, ()) if x[0] >= time.monotonic() - span - CPU_LOOK]
+        if len(looks) < 2:
             return None
-        last_t, last_cpu = samples[-1]
-        first_t, first_cpu = next(((t, c) for t, c in samples if last_t - t <= span), samples[0])
-        wall, used = last_t - first_t, last_cpu - first_cpu
-        return (used, wall) if wall >= 1.0 and used >= 0.5 * wall else None
+        wall, used = looks[-1][0] - looks[0][0], looks[-1][1] - looks[0][1]
+        running = sum(r for _, _, r in looks) / len(looks)
+        busy = wall >= 1.0 and (running >= 0.5 or used >= 0.5 * wall)
+        return (used, wall, running) if busy else None
 
     def stopped(self) -> dict[str, float]:
         """Children stopped (by SIGSTOP, a debugger) long enough, recently enough, to have made
@@ -374,11 +383,12 @@ def _busy_note(children: _Children, why: str, peer_timeout: float) -> str:
     busy = children.busy(named[1], peer_timeout)
     if busy is None:
         return ""
-    used, wall = busy
+    used, wall, running = busy
     pid = children.procs[named[1]].pid
     return (
-        f"; {named[1]} (pid {pid}) was busy, not hung: it used {used:.1f} s of CPU in the "
-        f"last {wall:.1f} s (a step that long: --peer-timeout S waits longer)"
+        f"; {named[1]} (pid {pid}) was busy, not hung: computing at {100 * running:.0f} % of "
+        f"the launcher's looks over the last {wall:.1f} s, {used:.1f} s of CPU (a step that "
+        f"long: --peer-timeout S waits longer)"
     )
 
 

@@ -34,7 +34,7 @@ __all__ = [
     "end_own_nodes",
     "ended_how",
     "STOP_GRACE",
-    "cpu_seconds",
+    "cpu_state",
     "TERM_GRACE",
     "SharedMemory",
     "domains_in_use",
@@ -127,11 +127,14 @@ AGAIN = (
 )
 
 
-def cpu_seconds(pid: int) -> float | None:
-    """CPU time (user + system, s) process ``pid`` has used, all its threads (None: gone)."""
+def cpu_state(pid: int) -> tuple[float, bool] | None:
+    """The CPU time (user + system, s) process ``pid`` has used, all its threads, and whether its
+    main thread is running or waiting for a CPU (state R) rather than waiting for something
+    (None: gone). On a loaded machine a computing process gets a share of a CPU only, but it is
+    always R."""
     try:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK"), fields[0] == "R"
     except (OSError, IndexError, ValueError):
         return None
 
