@@ -183,6 +183,9 @@ NOT_RUN = {
     "predictive-drive bench --json --graph ros,ros_example_dtc --no-horizons": "a benchmark: "
     "it prints figures, asserts none (test_cli.py refuses its unknown keys)",
     "predictive-drive bench --graph ros,ros_example_dtc": "the command above, printed as text",
+    "predictive-drive bench --external torque_controller=COMMAND --label NAME": (
+        "test_bench_times_your_controller_beside_ours"
+    ),
     # how the timings the pages give were measured (the commands themselves run above)
     "time make run": "the measurement of the README's timing (make run runs here, shortened)",
     "time predictive-drive reproduce SCENARIO": "the measurement of reproduction.md's timings",

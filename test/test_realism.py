@@ -13,7 +13,7 @@ from predictive_drive.api import study as study_module
 from predictive_drive.api.reproduce import RealismResult, _ranks, reproduce
 from predictive_drive.api.sweep import Case, run_case
 from predictive_drive.config import apply_settings, resolve_scenario_path
-from predictive_drive.errors import ConfigError
+from predictive_drive.errors import ConfigError, Interrupted
 from predictive_drive.reports.figures import realism_figures
 from predictive_drive.reports.realism import (
     CONDITIONS,
@@ -138,7 +138,7 @@ def test_a_real_drive_setting_replaces_the_studys_in_its_columns(monkeypatch):
         raise KeyboardInterrupt  # enough: the cases are what this test looks at
 
     monkeypatch.setattr(study_module, "run_cases", record)  # every study runs its cases there
-    with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(Interrupted):  # the study's: 0 runs had finished
         reproduce("realism", settings={"plant.dead_time": 1e-6, "speed_pi.kp": "*0.5"})
     scenario, cases = seen[0]
     assert scenario == "im_paper"
