@@ -105,9 +105,14 @@ class PlantParams:
         "integrate torque, flux and current between the samples: the state's *_avg fields and "
         "the continuous-time figures (off: NaN; costs a third of a run's time)"
     )
+    #: the machine's magnetic saturation (:data:`~.machines.SATURATIONS`, the ``saturation``
+    #: group; docs/physics.md#saturation); None (or model none): the linear machine
+    saturation: Any = None
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.saturation is not None and not self.saturation.on:
+            object.__setattr__(self, "saturation", None)  # model none: the linear plant
         self.load_profile()
         if self.current_adc_bits and math.isnan(self.current_range):
             raise ConfigError(
