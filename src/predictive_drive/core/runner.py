@@ -75,6 +75,7 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
         sensors=sensors,
         period_means=p.period_means,
         held_speed=p.held_speed() if p.held else None,
+        u_dc_gain=p.u_dc_gain,
     )
     if p.saturation is not None:  # a saturating machine (docs/physics.md#saturation)
         return make_saturated_plant(machine, p.motor, p.saturation, **settings)

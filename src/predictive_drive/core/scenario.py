@@ -90,6 +90,10 @@ class PlantParams:
     speed_window: float = quantity(
         "speed from the encoder: count difference over this window", "s", gt=0, default=1e-3
     )
+    u_dc_gain: float = quantity(
+        "measured DC-link voltage over the true one (the sensor's gain: 1 exact)", gt=0,
+        default=1.0,
+    )  # fmt: skip
     sensor_seed: int = quantity(
         "seed of the sensors' noise (same seed, same recording)", ge=0, integer=True, default=0
     )
