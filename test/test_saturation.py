@@ -362,3 +362,24 @@ def test_field_orientation_takes_its_current_for_t_star_from_the_map(law):
     linear = FOCController(FOCParams(PMSYRM_MOTOR, law), ts=1e-4)
     linear.step(state, ref)
     assert abs(fm.torque(linear.i_ref.real, linear.i_ref.imag, 2) - 29.7) > 1.0
+
+
+def test_the_published_machines_transient_runs_and_rates_the_map():
+    """pmsyrm_short (held speed, T* steps to rated and down): the linear mptc runs it within the
+    map's range, worse than when it knows the map."""
+    from predictive_drive.api.report import metrics_of
+
+    path = scenario_path("pmsyrm_short")
+    sc = load_scenario(path, duration=0.12)
+    own = {f"torque_controller.saturation.{k}": v for k, v in _PMSYRM_SETTINGS.items()}
+    mapped = load_scenario_text(apply_settings(path.read_text(), own, path), path)
+    mapped = mapped.with_duration(0.12)
+    linear, knowing = (metrics_of(run_inprocess(s), s).t_rmse for s in (sc, mapped))
+    assert knowing < 0.6 * linear, (linear, knowing)
+
+
+_PMSYRM_SETTINGS = {
+    "model": "algebraic", "a_d0": 3.96, "a_dd": 28.5, "s": 4.0, "a_q0": 5.89, "a_qq": 2.67,
+    "t": 6.0, "a_dq": 41.5, "u": 1.0, "v": 1.0, "psi_n": 0.804, "a_b": 81.75, "a_bp": 1.0,
+    "w": 2.0, "k_q": 0.1, "max_current": 25.0,
+}  # fmt: skip
