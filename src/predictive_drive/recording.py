@@ -124,6 +124,7 @@ def bag_info(
         # a controller of the user's own: the command contract it was held to
         **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
         **({"external": json.dumps(own)} if own else {}),
+        **({"draw": sc.draw} if sc.draw else {}),  # a drawn drive (sweep --draw, robustness)
     }
 
 

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import csv
+import dataclasses
 import itertools
+import json
 import math
 import multiprocessing
 import os
@@ -64,6 +66,9 @@ class Case:
     settings: dict[str, Any] = field(default_factory=dict)
     bag: str | None = None  #: record the run to this bag directory (None: no recording)
     duration: float | None = None  #: s of simulated time (None: the sweep's, or the scenario's)
+    #: the drawn drive it runs on (:class:`~.draws.Draw` as a dict; its values are in
+    #: ``settings``), recorded in its bag's metadata
+    draw: dict[str, Any] | None = None
 
 
 @dataclass
@@ -77,6 +82,7 @@ class Row:
     wall_s: float = math.nan
     bag: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    draw: dict[str, Any] | None = None  #: the drawn drive (see :attr:`Case.draw`)
 
     def as_dict(self) -> dict[str, Any]:
         out = {
@@ -88,6 +94,8 @@ class Row:
         }
         if self.bag is not None:
             out["bag"] = self.bag
+        if self.draw is not None:
+            out["draw"] = self.draw
         out.update(self.extra)
         return out
 
@@ -105,6 +113,11 @@ class SweepResult:
     #: interrupted with ``--record``: what became of each bag of a run that did not finish (closed
     #: readable with the steps it holds, or removed); a run whose bag is complete is a row
     cut: list[str] = field(default_factory=list)
+    #: with drawn drives (``--draw N``): each strategy's figures over them
+    #: (:class:`~.draws.StrategyFigures`), the spreads and the seed
+    drawn: list[Any] = field(default_factory=list)
+    spreads: list[str] = field(default_factory=list)
+    seed: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -117,7 +130,12 @@ class SweepResult:
             "cut": self.cut,
             "files": self.files,
             "figures": self.figures,
-        }
+            **(
+                {"spreads": self.spreads, "seed": self.seed,
+                 "drawn": [d.as_dict() for d in self.drawn]}
+                if self.spreads else {}
+            ),
+        }  # fmt: skip
 
 
 def _split_values(values: str) -> list[str]:
@@ -185,7 +203,7 @@ def run_case(
     Never raises for the case's own failure: that is the row's error."""
     global _in_case
     t0 = time.perf_counter()
-    row = Row(case.strategy, dict(case.settings), bag=case.bag)
+    row = Row(case.strategy, dict(case.settings), bag=case.bag, draw=case.draw)
     # in a case before the look at _stopping: a stop that comes between the two interrupts the
     # case (was: it came after the look and before this flag, and the case ran on, 60 s, until
     # the sweep ended its worker outright and removed its bag)
@@ -195,6 +213,8 @@ def run_case(
             row.error = NOT_RUN
             return row
         sc = load_scenario_text(text, where).with_strategy(case.strategy)
+        if case.draw is not None:
+            sc = dataclasses.replace(sc, draw=json.dumps(case.draw))
         if case.duration is not None or duration is not None:
             sc = sc.with_duration(case.duration if case.duration is not None else duration)
         if case.bag is not None:
@@ -316,7 +336,12 @@ def run_cases(
             raise ConfigError(
                 f"--strategy {c.strategy}: not a strategy of {base.family}; valid: {', '.join(names)}"
             )
-    texts = [_case_text(text, path, c) for c in cases]  # ConfigError: an unknown key
+    made: dict[str, str] = {}  # drawn drives: one text per drive, whatever the strategy
+    texts = [
+        made.get(key) or made.setdefault(key, _case_text(text, path, c))  # ConfigError: unknown key
+        for c in cases
+        for key in (repr(c.settings),)
+    ]
     t0 = time.perf_counter()
     done: dict[int, Row] = {}
     interrupted = False
@@ -348,7 +373,7 @@ def _row_of(fut: cf.Future[Row], case: Case) -> Row:
         return fut.result()
     except Exception as e:  # noqa: BLE001 — the worker died, not the case
         error = f"{WORKER_ENDED}: {type(e).__name__}: {e}"
-        return Row(case.strategy, dict(case.settings), error=error, bag=case.bag)
+        return Row(case.strategy, dict(case.settings), error=error, bag=case.bag, draw=case.draw)
 
 
 def _where(path: str, case: Case) -> str:
@@ -421,7 +446,9 @@ def _settle(done: dict[int, Row], cases: Sequence[Case]) -> tuple[list[Row], lis
             from .report import evaluate
 
             ev = evaluate(case.bag)
-            rows.append(Row(case.strategy, dict(case.settings), ev.metrics, bag=case.bag))
+            rows.append(
+                Row(case.strategy, dict(case.settings), ev.metrics, bag=case.bag, draw=case.draw)
+            )
         elif status.closed:
             cut.append(f"{case.bag}: cut at {status.steps} of {planned} steps, closed (readable)")
         else:
@@ -455,11 +482,18 @@ COLUMNS = (
 )  # fmt: skip
 
 
+#: a sweep of drawn drives summarises these metrics (by key), and ranks by these
+DRAW_COLUMNS = ("t_rmse", "thd", "f_sw_hz")
+DRAW_RANKED = ("t_rmse",)
+
+
 def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
     """Header and rows: strategy, one column per swept key (the value as given), every metric,
     utilization V0..V6, error, wall_s."""
     keys = list(dict.fromkeys(k for r in rows for k in r.settings))
+    drawn = any(r.draw is not None for r in rows)
     header = ["strategy", *keys, *COLUMNS, *(f"util_v{i}" for i in range(7)), "error", "wall_s"]
+    header[1:1] = ["draw"] if drawn else []
     out = []
     for r in rows:
         m = r.metrics.as_dict() if r.metrics is not None else {}
@@ -467,6 +501,7 @@ def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
         out.append(
             [
                 r.strategy,
+                *([r.draw["index"] if r.draw else None] if drawn else []),
                 *(r.settings.get(k) for k in keys),
                 *(m.get(c, math.nan) for c in COLUMNS),
                 *util[:7],
@@ -557,13 +592,18 @@ def sweep(
     scheduler: str | None = None,
     jobs: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    expand: Callable[[list[Case]], list[Case]] | None = None,
 ) -> SweepResult:
     """The command: the grid of ``strategies`` (default: the scenario's) × every ``--set``,
-    run, written (``out``: CSV + Parquet, and the bags with ``record``), drawn (``figures``)."""
+    run, written (``out``: CSV + Parquet, and the bags with ``record``), drawn (``figures``).
+    ``expand``: the grid's cases → the cases run (every case on each drawn drive:
+    :func:`.draws.sweep_drawn`)."""
     path = resolve_scenario_path(scenario)
     base = load_scenario_text(path.read_text(encoding="utf-8"), path)
     parsed = [parse_set(s) for s in sets]
     cases = grid(list(strategies) or [base.strategy], parsed)
+    if expand is not None:
+        cases = expand(cases)
     if record:
         if out is None or len(table_files(out)) == 1:
             raise ConfigError(
@@ -575,7 +615,9 @@ def sweep(
         for i, c in enumerate(cases):
             tag = "_".join(f"{k.rsplit('.', 1)[-1]}{v}" for k, v in c.settings.items())
             bag = Path(out) / "bags" / f"{i:03d}_{c.strategy}{'_' + tag if tag else ''}"
-            cases[i] = Case(c.strategy, c.settings, str(check_new_bag(bag).resolve()))
+            if c.draw is not None:
+                bag = bag.with_name(f"{bag.name}_draw{c.draw['index']}")
+            cases[i] = dataclasses.replace(c, bag=str(check_new_bag(bag).resolve()))
     if out is not None:
         check_table_files(out)  # the table can be written: checked before the runs, not after
     if duration is not None and not (math.isfinite(duration) and duration > 0):

@@ -223,6 +223,9 @@ class Scenario:
     #: the nodes whose sections are the user's (``run --external``): their keys reach the node
     #: as parameters and are not checked against a built-in node's
     own: frozenset[str] = frozenset()
+    #: the drawn drive this run is (JSON: its index, seed, factors and values; docs/
+    #: reproduction.md#robustness), "" for none: what the recording's metadata says of it
+    draw: str = ""
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)
