@@ -149,6 +149,13 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     sw = ok_json(install, work, "sweep", "im_short", "--strategy", "mptc,db_mptc",
                  "--duration", "0.05")  # fmt: skip
     assert len(sw["rows"]) == 2 and not any(r_["error"] for r_ in sw["rows"])
+    # drawn drives of the saturating machine (its scenario installed with the rest)
+    sw = ok_json(install, work, "sweep", "pmsyrm_steady", "--strategy", "mptc,simplified1",
+                 "--draw", "2", "--spread", "plant.motor.r_s=normal:0.1", "--duration", "0.02")  # fmt: skip
+    assert len(sw["rows"]) == 4 and [d["strategy"] for d in sw["drawn"]] == ["mptc", "simplified1"]
+    rob = ok_json(install, work, "reproduce", "robustness", "--points", "ipmsm_steady",
+                  "--draws", "2", "--duration", "0.03")  # fmt: skip
+    assert rob["draws"] == 2 and len(rob["points"][0]["figures"]) == 4
 
     bench = ok_json(install, work, "bench", "--quick", timeout=300)
     assert bench["core_steps_per_s"] > 0 and bench["report_steps_per_s"] > 0

@@ -101,6 +101,14 @@ NOT_RUN = {
     "study through the same code (api.fronts.reproduce_fronts)",
     "time predictive-drive reproduce fronts": "the timing of the command above",
     "predictive-drive reproduce fronts --json": "the command above, its table as JSON",
+    "predictive-drive reproduce robustness": "hundreds of runs; test_robustness.py runs a short "
+    "study through the same code (api.robustness.reproduce_robustness), test_install.py the verb",
+    "predictive-drive reproduce robustness --draws 1000": "16,044 runs, most of an hour here",
+    "time predictive-drive reproduce robustness --points ipmsm_steady --draws 1000": "the timing "
+    "of 4,016 runs (minutes): a measurement, not a test",
+    "predictive-drive run pmsyrm_steady --duration 0.02 --set plant.saturation.max_current=8": (
+        "test_leaving_the_map_stops_the_run_naming_the_step_and_the_current"
+    ),
     "cd ~/ws/src && git clone <this repository> predictive_drive && cd ~/ws": "a user's workspace; "
     "installs.colcon_install copies the package as a clone has it",
     "colcon build && . install/setup.sh": "test_colcon.py builds the workspace",

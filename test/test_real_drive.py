@@ -174,3 +174,23 @@ def test_sensors_measure_from_a_seed_and_the_truth_is_kept():
 def test_impossible_real_drive_settings_are_refused_naming_the_key(setting, message):
     with pytest.raises(ConfigError, match=message):
         _with("im_short", plant=setting)
+
+
+def test_the_dc_link_gain_changes_what_is_measured_not_the_drive():
+    """plant.u_dc_gain 1.1: the published u_dc is 1.1 × the DC link; the plant under the same
+    commands moves as with an exact sensor (the inverter's voltages are the true ones)."""
+    import math as m
+
+    from predictive_drive.core.machines.pmsm import PMSM
+    from predictive_drive.core.plant import PMSMPlant
+    from predictive_drive.core.signals import Command
+    from predictive_drive.core.timebase import StepProfile
+
+    motor = PMSM(0.25, 0.0033, 0.0073, 0.2264, 3, 0.001, 15.0, 1000.0)
+    kw = dict(ts=5e-5, u_dc=312.0, load=StepProfile((0.0,), (0.0,)), max_substep=5e-5)
+    exact, off = PMSMPlant(motor, **kw), PMSMPlant(motor, u_dc_gain=1.1, **kw)
+    for k in range(50):
+        c = Command(k, k * 5e-5, 0.0, 0.1, 0.2, 0.5, 0.3, 0.1, *[m.nan] * 14)
+        a, b = exact.step(c), off.step(c)
+    assert b.u_dc == pytest.approx(1.1 * 312.0, rel=1e-15) and a.u_dc == 312.0
+    assert (b.i_alpha, b.i_beta, b.omega_m) == (a.i_alpha, a.i_beta, a.omega_m)

@@ -20,7 +20,7 @@ import yaml
 
 from .core.control import CONTROLLERS, controller_class
 from .core.control.speed_pi import SpeedPIParams
-from .core.machines import Machine, motor_class
+from .core.machines import Machine, motor_class, saturation_class
 from .core.scenario import LoggerParams, PlantParams, RunParams, Scenario
 from .core.signals import EXTERNAL_PREFIX
 from .errors import ConfigError
@@ -189,7 +189,10 @@ def section_class(
         ctrl = controller_class(family).params_type
         return ctrl, nested_types(ctrl)
     fixed: dict[str, tuple[type, dict[str, type]]] = {
-        "plant": (PlantParams, {"motor": motor_class(machine)}),
+        "plant": (
+            PlantParams,
+            {"motor": motor_class(machine), "saturation": saturation_class(machine)},
+        ),
         "speed_pi": (SpeedPIParams, {}),
         "metrics_logger": (LoggerParams, {}),
     }
@@ -515,15 +518,17 @@ def apply_settings(
             )
         params = _params(doc, section, where)
         theirs = node in own
-        for part in path[:-1]:
-            if theirs and part not in params:
+        for depth, part in enumerate(path[:-1]):
+            if part not in params and (
+                theirs or part in _defaulted(doc, node, where, tuple(path[:depth]))
+            ):  # the user's, or a group left to its default (``plant.saturation``)
                 params[part] = {}
             sub = params.get(part)
             if not isinstance(sub, dict):
                 raise ConfigError(f"setting {key!r}: {section} has no group {part!r}")
             params = sub
         leaf = path[-1]
-        optional = _defaulted(doc, node, where) if len(path) == 1 else set()
+        optional = _defaulted(doc, node, where, tuple(path[:-1]))
         if leaf not in params and leaf not in optional and not theirs:
             family = params.get(FAMILY_KEY) if node == "torque_controller" else None
             meant = [k for k in _setting_keys(doc, where) if k.rsplit(".", 1)[-1] == leaf]
@@ -564,17 +569,25 @@ def _setting_keys(doc: dict[str, Any], where: str | Path) -> list[str]:
     return list(dict.fromkeys(keys))
 
 
-def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:
-    """The keys of ``node``'s section a scenario file may leave out (they have a default): a
-    setting may give them though the file does not."""
+def _defaulted(
+    doc: dict[str, Any], node: str, where: str | Path, group: tuple[str, ...] = ()
+) -> set[str]:
+    """The keys of ``node``'s section (or of its nested ``group``, e.g. ``("saturation",)``) a
+    scenario file may leave out (they have a default): a setting may give them though the file
+    does not."""
     if node not in NODES:
         return set()
     machine = _params(doc, SHARED, where).get("machine")
     family = _params(doc, f"{NAMESPACE}/torque_controller", where).get(FAMILY_KEY)
     try:
-        cls, _ = section_class(node, str(machine), family)
+        cls, nested = section_class(node, str(machine), family)
     except (KeyError, ValueError):
         return set()
+    for part in group:
+        if part not in nested:
+            return set()
+        cls = nested[part]
+        nested = nested_types(cls)
     return {f.name for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 

@@ -131,6 +131,7 @@ def bag_info(
         **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
         **({"external": json.dumps(own)} if own else {}),
         **({"label": label} if label else {}),
+        **({"draw": sc.draw} if sc.draw else {}),  # a drawn drive (sweep --draw, robustness)
     }
 
 

@@ -37,14 +37,23 @@ from ..reports.realism import (
     STUDY_KEY,
     condition_settings,
 )
+from ..reports.robustness import DEFAULT_DRAWS, DEFAULT_SEED
 from .compare import compare
 from .controller_replay import controller_replay
 from .fronts import FRONTS_STUDY, FrontsResult, reproduce_fronts, with_knob_values
+from .robustness import (
+    ROBUSTNESS_STUDY,
+    RobustnessResult,
+    reproduce_robustness,
+    robustness_points,
+)
 from .study import Reproduction, StudyRuns, studying
 from .sweep import Case, Row
 
 __all__ = [
     "FRONTS_STUDY",
+    "ROBUSTNESS_STUDY",
+    "STUDIES",
     "MTPAClaim",
     "MTPARow",
     "MTPAStudyResult",
@@ -60,6 +69,8 @@ __all__ = [
 
 #: the named study that is neither a paper's table nor an MTPA study
 REALISM_STUDY = "realism"
+#: the studies across scenarios (each a sweep, in-process, on the local cores or Dask)
+STUDIES = (REALISM_STUDY, FRONTS_STUDY, ROBUSTNESS_STUDY)
 
 #: the figures of a table row, by metric key (:data:`~..core.metrics.METRICS`)
 TABLE_FIGURES = (
@@ -272,7 +283,11 @@ def reproduce(
     lambda_sw: Sequence[float] | None = None,
     fsw_khz: Sequence[float] | None = None,
     lambda_u: Sequence[float] | None = None,
-) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult:
+    draws: int | None = None,
+    seed: int | None = None,
+    points: Sequence[str] | None = None,
+    spreads: Sequence[str] = (),
+) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult | RobustnessResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study, or the realism study
     (:func:`reproduce_realism`, the one that runs on a Dask cluster at ``scheduler`` too).
@@ -282,14 +297,22 @@ def reproduce(
     row's own. ``out_root``: keep every run's bag in this folder (None: the bags a study needs
     go to a temporary folder, removed at the end). ``progress(done, planned)``: told as each
     run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) takes its knobs' values from
-    ``lambda_sw``, ``lambda_u`` and ``fsw_khz`` where given."""
+    ``lambda_sw``, ``lambda_u`` and ``fsw_khz`` where given; the robustness study
+    (:func:`~.robustness.reproduce_robustness`) draws ``draws`` drives by ``seed`` at
+    ``points`` (None: all), ``spreads`` replacing or adding to each point's."""
     settings = dict(settings or {})
+    robust = (draws, seed, points)
+    if scenario != ROBUSTNESS_STUDY and (any(x is not None for x in robust) or spreads):
+        raise ConfigError(
+            f"reproduce {scenario}: --draws, --seed, --points and --spread choose the "
+            f"robustness study's drives"
+        )
     if scenario != FRONTS_STUDY and any(x is not None for x in (lambda_sw, fsw_khz, lambda_u)):
         raise ConfigError(
             f"reproduce {scenario}: --lambda-sw, --lambda-u and --fsw-khz choose the fronts "
             f"study's knobs"
         )
-    if scenario in (REALISM_STUDY, FRONTS_STUDY):
+    if scenario in STUDIES:
         if engine != "inprocess":
             raise ConfigError(
                 f"reproduce {scenario} runs as a sweep (in-process, on the local cores or a "
@@ -297,16 +320,18 @@ def reproduce(
             )
     elif scheduler is not None:
         raise ConfigError(
-            f"reproduce {scenario}: a Dask scheduler serves the realism and fronts studies "
-            f"only (the tables' bags are drawn and timed here)"
+            f"reproduce {scenario}: a Dask scheduler serves the realism, fronts and robustness "
+            f"studies only (the tables' bags are drawn and timed here)"
         )
     elif scenario not in MTPA_STUDIES and scenario not in PAPER_TABLES:
         raise ConfigError(
             f"reproduce: no paper table or study {scenario!r}; available: "
-            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])}"
+            f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, *STUDIES])}"
         )
     if scenario == FRONTS_STUDY:  # its knobs, checked before anything runs
         fronts = with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz, lambda_u=lambda_u)
+    if scenario == ROBUSTNESS_STUDY:
+        chosen = robustness_points(points, spreads)
     check_output_dir(figures, option="--figures")  # before the work, not after it
     with studying(
         out_root,
@@ -317,6 +342,17 @@ def reproduce(
         progress=progress,
     ) as runner:
         result: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult
+        result_r: RobustnessResult
+        if scenario == ROBUSTNESS_STUDY:
+            result_r = reproduce_robustness(
+                runner,
+                draws=DEFAULT_DRAWS if draws is None else draws,
+                seed=DEFAULT_SEED if seed is None else seed,
+                points=chosen,
+                figures=figures,
+                settings=settings,
+            )
+            return dataclasses.replace(result_r, windows=runner.windows, bags=runner.kept())
         if scenario == FRONTS_STUDY:
             result = reproduce_fronts(runner, figures=figures, settings=settings, study=fronts)
         elif scenario == REALISM_STUDY:

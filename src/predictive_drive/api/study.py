@@ -27,7 +27,7 @@ from ..errors import Interrupted, PredictiveDriveError
 from ..outputs import check_output_dir
 from .report import evaluate
 from .run import run
-from .sweep import Analysis, Case, Row, run_cases
+from .sweep import WORKER_ENDED, Analysis, Case, Row, run_cases
 
 __all__ = ["BagsKept", "Reproduction", "StudyRuns", "studying"]
 
@@ -106,11 +106,18 @@ class StudyRuns:
         return path
 
     def runs(
-        self, scenario: str, cases: Sequence[Case], *, analysis: Analysis | None = None
+        self,
+        scenario: str,
+        cases: Sequence[Case],
+        *,
+        analysis: Analysis | None = None,
+        failures: bool = False,
     ) -> list[Row]:
         """The cases, each recorded to its bag if it names one: a sweep across the cores or the
         cluster (in-process), or one graph at a time (a ROS engine, which uses the cores
-        already). A failed case fails the study, naming it."""
+        already). A failed case fails the study, naming it (``failures``: a case's own failure
+        is a row with its error, for a study that counts them, as over drawn drives; a worker
+        that died still fails the study)."""
         before = self.done
         self.planned += len(cases)
 
@@ -142,6 +149,8 @@ class StudyRuns:
                     raise self.interrupted(before + i, cut) from None
                 finished(i + 1, len(cases))
         for row in rows:
+            if failures and row.error and not row.error.startswith(WORKER_ENDED):
+                continue  # the case's own failure (a drive that leaves its map), counted
             if row.error or row.metrics is None:
                 raise PredictiveDriveError(
                     f"reproduce {scenario}: the run {row.strategy} {row.settings or ''} failed: "

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import csv
+import dataclasses
 import itertools
+import json
 import math
 import multiprocessing
 import os
@@ -65,6 +67,9 @@ class Case:
     settings: dict[str, Any] = field(default_factory=dict)
     bag: str | None = None  #: record the run to this bag directory (None: no recording)
     duration: float | None = None  #: s of simulated time (None: the sweep's, or the scenario's)
+    #: the drawn drive it runs on (:class:`~.draws.Draw` as a dict; its values are in
+    #: ``settings``), recorded in its bag's metadata
+    draw: dict[str, Any] | None = None
 
 
 @dataclass
@@ -78,6 +83,7 @@ class Row:
     wall_s: float = math.nan
     bag: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    draw: dict[str, Any] | None = None  #: the drawn drive (see :attr:`Case.draw`)
 
     def as_dict(self) -> dict[str, Any]:
         out = {
@@ -89,6 +95,8 @@ class Row:
         }
         if self.bag is not None:
             out["bag"] = self.bag
+        if self.draw is not None:
+            out["draw"] = self.draw
         out.update(self.extra)
         return out
 
@@ -106,6 +114,11 @@ class SweepResult:
     #: interrupted with ``--record``: what became of each bag of a run that did not finish (closed
     #: readable with the steps it holds, or removed); a run whose bag is complete is a row
     cut: list[str] = field(default_factory=list)
+    #: with drawn drives (``--draw N``): each strategy's figures over them
+    #: (:class:`~.draws.StrategyFigures`), the spreads and the seed
+    drawn: list[Any] = field(default_factory=list)
+    spreads: list[str] = field(default_factory=list)
+    seed: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -118,7 +131,12 @@ class SweepResult:
             "cut": self.cut,
             "files": self.files,
             "figures": self.figures,
-        }
+            **(
+                {"spreads": self.spreads, "seed": self.seed,
+                 "drawn": [d.as_dict() for d in self.drawn]}
+                if self.spreads else {}
+            ),
+        }  # fmt: skip
 
 
 def _split_values(values: str) -> list[str]:
@@ -186,7 +204,7 @@ def run_case(
     Never raises for the case's own failure: that is the row's error."""
     global _in_case
     t0 = time.perf_counter()
-    row = Row(case.strategy, dict(case.settings), bag=case.bag)
+    row = Row(case.strategy, dict(case.settings), bag=case.bag, draw=case.draw)
     # in a case before the look at _stopping: a stop that comes between the two interrupts the
     # case (was: it came after the look and before this flag, and the case ran on, 60 s, until
     # the sweep ended its worker outright and removed its bag)
@@ -196,6 +214,8 @@ def run_case(
             row.error = NOT_RUN
             return row
         sc = load_scenario_text(text, where, strategy=case.strategy)
+        if case.draw is not None:
+            sc = dataclasses.replace(sc, draw=json.dumps(case.draw))
         if case.duration is not None or duration is not None:
             sc = sc.with_duration(case.duration if case.duration is not None else duration)
         if case.bag is not None:
@@ -317,7 +337,12 @@ def run_cases(
             raise ConfigError(
                 f"--strategy {c.strategy}: not a strategy of {base.family}; valid: {', '.join(names)}"
             )
-    texts = [_case_text(text, path, c) for c in cases]  # ConfigError: an unknown key
+    made: dict[str, str] = {}  # drawn drives: one text per drive, whatever the strategy
+    texts = [
+        made.get(key) or made.setdefault(key, _case_text(text, path, c))  # ConfigError: unknown key
+        for c in cases
+        for key in (repr(c.settings),)
+    ]
     t0 = time.perf_counter()
     done: dict[int, Row] = {}
     interrupted = False
@@ -357,7 +382,7 @@ def _row_of(fut: cf.Future[Row], case: Case) -> Row:
         return fut.result()
     except Exception as e:  # noqa: BLE001 — the worker died, not the case
         error = f"{WORKER_ENDED}: {type(e).__name__}: {e}"
-        return Row(case.strategy, dict(case.settings), error=error, bag=case.bag)
+        return Row(case.strategy, dict(case.settings), error=error, bag=case.bag, draw=case.draw)
 
 
 def _where(path: str, case: Case) -> str:
@@ -430,7 +455,9 @@ def _settle(done: dict[int, Row], cases: Sequence[Case]) -> tuple[list[Row], lis
             from .report import evaluate
 
             ev = evaluate(case.bag)
-            rows.append(Row(case.strategy, dict(case.settings), ev.metrics, bag=case.bag))
+            rows.append(
+                Row(case.strategy, dict(case.settings), ev.metrics, bag=case.bag, draw=case.draw)
+            )
         elif status.closed:
             cut.append(f"{case.bag}: cut at {status.steps} of {planned} steps, closed (readable)")
         else:
@@ -464,11 +491,18 @@ COLUMNS = (
 )  # fmt: skip
 
 
+#: a sweep of drawn drives summarises these metrics (by key), and ranks by these
+DRAW_COLUMNS = ("t_rmse", "thd", "f_sw_hz")
+DRAW_RANKED = ("t_rmse",)
+
+
 def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
     """Header and rows: strategy, one column per swept key (the value as given), every metric,
     utilization V0..V6, error, wall_s."""
     keys = list(dict.fromkeys(k for r in rows for k in r.settings))
+    drawn = any(r.draw is not None for r in rows)
     header = ["strategy", *keys, *COLUMNS, *(f"util_v{i}" for i in range(7)), "error", "wall_s"]
+    header[1:1] = ["draw"] if drawn else []
     out = []
     for r in rows:
         m = r.metrics.as_dict() if r.metrics is not None else {}
@@ -476,6 +510,7 @@ def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
         out.append(
             [
                 r.strategy,
+                *([r.draw["index"] if r.draw else None] if drawn else []),
                 *(r.settings.get(k) for k in keys),
                 *(m.get(c, math.nan) for c in COLUMNS),
                 *util[:7],
@@ -567,13 +602,18 @@ def sweep(
     scheduler: str | None = None,
     jobs: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    expand: Callable[[list[Case]], list[Case]] | None = None,
 ) -> SweepResult:
     """The command: the grid of ``strategies`` (default: the scenario's) × every ``--set``,
-    run, written (``out``: CSV + Parquet, and the bags with ``record``), drawn (``figures``)."""
+    run, written (``out``: CSV + Parquet, and the bags with ``record``), drawn (``figures``).
+    ``expand``: the grid's cases → the cases run (every case on each drawn drive:
+    :func:`.draws.sweep_drawn`)."""
     path = resolve_scenario_path(scenario)
     base = load_scenario_text(path.read_text(encoding="utf-8"), path)
     parsed = [parse_set(s) for s in sets]
     cases = grid(list(strategies) or [base.strategy], parsed)
+    if expand is not None:
+        cases = expand(cases)
     if record:
         if out is None or len(table_files(out)) == 1:
             raise ConfigError(
@@ -585,7 +625,9 @@ def sweep(
         for i, c in enumerate(cases):
             tag = "_".join(f"{k.rsplit('.', 1)[-1]}{v}" for k, v in c.settings.items())
             bag = Path(out) / "bags" / f"{i:03d}_{c.strategy}{'_' + tag if tag else ''}"
-            cases[i] = Case(c.strategy, c.settings, str(check_new_bag(bag).resolve()))
+            if c.draw is not None:
+                bag = bag.with_name(f"{bag.name}_draw{c.draw['index']}")
+            cases[i] = dataclasses.replace(c, bag=str(check_new_bag(bag).resolve()))
     if out is not None:
         check_table_files(out)  # the table can be written: checked before the runs, not after
     check_output_dir(figures, option="sweep --figures")

@@ -7,17 +7,20 @@ import argparse
 
 from ..api.fronts import FRONTS_STUDY, FrontsResult
 from ..api.reproduce import (
-    REALISM_STUDY,
+    STUDIES,
     MTPAStudyResult,
     PaperTableResult,
     RealismResult,
     reproduce,
 )
+from ..api.robustness import ROBUSTNESS_STUDY, RobustnessResult
 from ..api.run import ENGINES
 from ..core.metrics import METRICS
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
 from ..reports.realism import RANKED, SHOWN
+from ..reports.robustness import DEFAULT_DRAWS, DEFAULT_SEED, ROBUSTNESS
 from .common import refuse, runs_progress, say_json, seconds, single_settings
+from .sweep import print_drawn
 
 HELP = (
     "a paper's table side by side with our figures (or an MTPA study, the realism study, or "
@@ -26,9 +29,7 @@ HELP = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])
-    )
+    p.add_argument("scenario", choices=sorted([*PAPER_TABLES, *MTPA_STUDIES, *STUDIES]))
     p.add_argument(
         "--engine",
         default="inprocess",
@@ -60,7 +61,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "in the columns that have it",
     )
     p.add_argument(
-        "--scheduler", metavar="ADDRESS", help="realism and fronts only: run on this Dask "
+        "--scheduler", metavar="ADDRESS", help="realism, fronts, robustness: run on this Dask "
         "cluster (e.g. tcp://host:8786) instead of the local cores",
     )  # fmt: skip
     p.add_argument(
@@ -79,8 +80,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "traced over (default 0.5,1,2,3,5,7,10,15,20)",
     )  # fmt: skip
     p.add_argument(
-        "--jobs", type=int, help="realism and fronts: local processes (default: every core)"
+        "--jobs", type=int, help="realism, fronts, robustness: local processes (default: "
+        "every core)",
+    )  # fmt: skip
+    p.add_argument(
+        "--draws", type=int, metavar="N",
+        help=f"robustness only: drives drawn per point (default {DEFAULT_DRAWS})",
+    )  # fmt: skip
+    p.add_argument(
+        "--seed", type=int, help=f"robustness only: seed of the draws (default {DEFAULT_SEED})"
     )
+    p.add_argument(
+        "--points", metavar="A,B,...",
+        help=f"robustness only: the points to run (default all: {', '.join(ROBUSTNESS)})",
+    )  # fmt: skip
+    p.add_argument(
+        "--spread", action="append", metavar="KEY=normal:S|uniform:S",
+        help="robustness only: a parameter's spread, replacing a point's own for that key or "
+        "added (repeatable)",
+    )  # fmt: skip
 
 
 def _numbers(text: str) -> list[float]:
@@ -96,9 +114,15 @@ def main(a: argparse.Namespace) -> int:
     table = PAPER_TABLES.get(a.scenario)
     if table is None or not table.compute_ratios:
         refuse(a, f"times the compute ratios, which {a.scenario} has none of", "repeats")
-    if a.scenario not in (REALISM_STUDY, FRONTS_STUDY):
-        refuse(a, f"serves the realism and fronts studies only, not {a.scenario}", "scheduler")
-        refuse(a, f"runs the realism and fronts studies only, not {a.scenario}", "jobs")
+    if a.scenario not in STUDIES:
+        studies = "the realism, fronts and robustness studies only"
+        refuse(a, f"serves {studies}, not {a.scenario}", "scheduler")
+        refuse(a, f"runs {studies}, not {a.scenario}", "jobs")
+    if a.scenario != ROBUSTNESS_STUDY:
+        refuse(
+            a, f"chooses the robustness study's drives, not {a.scenario}'s",
+            "draws", "seed", "points", "spread",
+        )  # fmt: skip
     if a.scenario != FRONTS_STUDY:
         refuse(
             a, f"chooses the fronts study's knobs, not {a.scenario}'s",
@@ -120,6 +144,10 @@ def main(a: argparse.Namespace) -> int:
             lambda_sw=a.lambda_sw,
             fsw_khz=a.fsw_khz,
             lambda_u=a.lambda_u,
+            draws=a.draws,
+            seed=a.seed,
+            points=[s for s in a.points.split(",") if s] if a.points else None,
+            spreads=a.spread or [],
             progress=update,
         )
     finally:
@@ -132,6 +160,8 @@ def main(a: argparse.Namespace) -> int:
         print_realism(d)
     elif isinstance(d, FrontsResult):
         print_fronts(d)
+    elif isinstance(d, RobustnessResult):
+        print_robustness(d)
     else:
         print_table(d)
     for f in d.figures:
@@ -141,7 +171,9 @@ def main(a: argparse.Namespace) -> int:
     return 0
 
 
-def _settings(d: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult) -> None:
+def _settings(
+    d: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult | RobustnessResult,
+) -> None:
     if d.duration is not None:
         windows = "; ".join(
             (f"{name} " if len(d.windows) > 1 else "")
@@ -273,4 +305,36 @@ def print_fronts(d: FrontsResult) -> None:
                 if len(order) > 1:
                     print(f"  {METRICS[key].title} at {f_sw.format(f)} kHz: " + " < ".join(order))
     print("(* on the front of T_ripple, THD_i)")
+    print(f"How computed: {d.how}")
+
+
+def print_robustness(d: RobustnessResult) -> None:
+    print(
+        f"{d.scenario}: {d.paper}  ({d.engine}, {d.draws} drives per point, seed {d.seed}, "
+        f"{d.runs} runs, {d.wall_s:.0f} s)"
+    )
+    _settings(d)
+    for p in d.points:
+        print()
+        print(f"{p.point}: {p.caption}")
+        print(f"  drawn: {', '.join(p.spreads)}")
+        if p.settings:
+            print("  every run with " + ", ".join(f"{k} = {v}" for k, v in p.settings.items()))
+        print_drawn(p.figures, d.shown, d.ranked)
+        for key in d.ranked:
+            print(f"  by mean {METRICS[key].title}: " + (" < ".join(p.ranking(key)) or "-"))
+        if p.papers_ranking:
+            print(f"  papers' ranking ({p.papers_source}): " + " < ".join(p.papers_ranking))
+        if p.conditions:
+            names = list(p.conditions)
+            t = METRICS["t_rmse"]
+            print(f"  {t.heading + ' (x nominal)':<22}" + "".join(f" {c:>20}" for c in names))
+            for s in dict.fromkeys(s for c in p.conditions.values() for s in c):
+                nominal = p.conditions.get("nominal", {}).get(s, {}).get("t_rmse")
+                cells = []
+                for c in names:
+                    v = p.conditions[c].get(s, {}).get("t_rmse")
+                    ratio = f" (x{v / nominal:.2f})" if v and nominal and c != "nominal" else ""
+                    cells.append(f" {t.format(v) + ratio:>20}")
+                print(f"    {s:<20}" + "".join(cells))
     print(f"How computed: {d.how}")

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
+from typing import Any
 
-from ..api.sweep import SweepResult, sweep
+from ..api.sweep import DRAW_COLUMNS, DRAW_RANKED, SweepResult, sweep
 from ..core.metrics import METRICS
 from .common import refuse, runs_progress, say_json, scenario_argument, seconds
 
@@ -47,25 +49,49 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "instead of the local cores",
     )
     p.add_argument("--jobs", type=int, help="local processes (default: one per core)")
+    p.add_argument(
+        "--draw",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run every case on N drives drawn from the --spread distributions (the same N for "
+        "every strategy); prints each strategy's mean with its 95%% interval and its chance of "
+        "ranking first",
+    )
+    p.add_argument(
+        "--spread",
+        action="append",
+        metavar="KEY=normal:S|uniform:S",
+        help="a parameter drawn around its value: times 1 + S*z (z standard normal) or "
+        "1 + S*u (u uniform in -1..1), e.g. plant.motor.l_q=normal:0.1; repeat for more keys",
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
 
 
 def main(a: argparse.Namespace) -> int:
     if a.scheduler:
         refuse(a, "sets the local processes; with --scheduler the cluster's workers run", "jobs")
     update, close = runs_progress(f"sweep {a.scenario}", quiet=a.json)
+    settings = dict(
+        strategies=[s for s in (a.strategy or "").split(",") if s],
+        sets=a.set or [],
+        duration=a.duration,
+        out=a.out,
+        record=a.record,
+        figures=a.figures,
+        scheduler=a.scheduler,
+        jobs=a.jobs,
+        progress=update,
+    )
     try:
-        r = sweep(
-            a.scenario,
-            strategies=[s for s in (a.strategy or "").split(",") if s],
-            sets=a.set or [],
-            duration=a.duration,
-            out=a.out,
-            record=a.record,
-            figures=a.figures,
-            scheduler=a.scheduler,
-            jobs=a.jobs,
-            progress=update,
-        )
+        if a.draw or a.spread:
+            from ..api.draws import sweep_drawn
+
+            r = sweep_drawn(
+                a.scenario, draw=a.draw, spreads=a.spread or [], seed=a.seed, **settings
+            )
+        else:
+            r = sweep(a.scenario, **settings)
     finally:
         close()
     if a.json:
@@ -76,6 +102,12 @@ def main(a: argparse.Namespace) -> int:
 
 
 def print_sweep(r: SweepResult) -> None:
+    if r.spreads:
+        print(f"{len(r.rows) // max(1, len({row.strategy for row in r.rows}))} drives drawn "
+              f"(seed {r.seed}): {', '.join(r.spreads)}")  # fmt: skip
+        print_drawn(r.drawn, DRAW_COLUMNS, DRAW_RANKED)
+        _totals(r)
+        return
     keys = list(dict.fromkeys(k for row in r.rows for k in row.settings))
     widths = [
         max(6, len(k.rsplit(".", 1)[-1]), *(len(str(row.settings.get(k))) for row in r.rows))
@@ -92,6 +124,10 @@ def print_sweep(r: SweepResult) -> None:
             continue
         cells = " ".join(f"{m.format(getattr(row.metrics, c)):>9}" for m, c in zip(shown, COLUMNS))
         print(f"{row.strategy:<14} {values} {cells}")
+    _totals(r)
+
+
+def _totals(r: SweepResult) -> None:
     runs = len(r.rows)
     print(
         f"{runs} of {r.cases} runs in {r.wall_s:.1f} s on {r.engine} "
@@ -102,3 +138,38 @@ def print_sweep(r: SweepResult) -> None:
         print(f"not complete: {what}")
     for f in [*r.files, *r.figures]:
         print(f"wrote    {f}")
+
+
+def print_drawn(figures: Sequence[Any], keys: Sequence[str], ranked: Sequence[str]) -> None:
+    """Each strategy over drawn drives (:class:`~..api.draws.StrategyFigures`): per metric the
+    mean [95 % interval], per ranked metric the share of draws it ranks first [interval]."""
+    fixed = [  # the settings that tell the groups apart (a sweep's grid)
+        k for k in dict.fromkeys(k for f in figures for k in f.settings)
+        if len({repr(f.settings.get(k)) for f in figures}) > 1
+    ]  # fmt: skip
+    head = [f"{k.rsplit('.', 1)[-1]:>10}" for k in fixed]
+    cols = [f"{METRICS[k].heading:>26}" for k in keys]
+    cols += [f"{'P(first) ' + METRICS[k].title:>22}" for k in ranked]
+    cols += [f"{'vs best ' + METRICS[k].title:>26}" for k in ranked[:1]]
+    print(f"{'strategy':<14} " + " ".join(head + cols))
+    for f in figures:
+        cells = [f"{str(f.settings.get(k)):>10}" for k in fixed]
+        for k in keys:
+            m, iv = METRICS[k], f.mean[k]
+            cells.append(
+                f"{m.format(iv.value):>9} [{m.format(iv.low)}, {m.format(iv.high)}]".rjust(26)
+            )
+        for k in ranked:
+            iv = f.first[k]
+            text = f"{iv.value:6.1%} [{iv.low:.1%}, {iv.high:.1%}]" if iv.n else "-"
+            cells.append(text.rjust(22))
+        for k in ranked[:1]:  # paired, drive by drive, against the lowest mean
+            m, iv = METRICS[k], f.versus_best.get(k)
+            text = (
+                "-"
+                if iv is None
+                else f"{m.format(iv.value)} [{m.format(iv.low)}, {m.format(iv.high)}]"
+            )
+            cells.append(text.rjust(26))
+        failed = f"  ({f.failed} failed)" if f.failed else ""
+        print(f"{f.strategy:<14} " + " ".join(cells) + failed)

@@ -126,10 +126,12 @@ class InverterPlant:
         sensors: Sensors | None = None,
         period_means: bool = False,
         held_speed: StepProfile | None = None,
+        u_dc_gain: float = 1.0,
     ) -> None:
         self.motor = motor
         self.ts = ts
         self.u_dc = u_dc
+        self._u_dc_seen = u_dc * u_dc_gain  #: the DC link as measured (a sensor's gain error)
         self._coef = self.coefficients.of(motor)
         x0 = self.x0
         #: the speed a load machine holds (rad/s), by step; None: a free shaft
@@ -270,7 +272,7 @@ class InverterPlant:
                 m_ib,
                 m_w,
                 m_the,
-                self.u_dc,
+                self._u_dc_seen,
                 te,
                 psi.real,
                 psi.imag,

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 from ..errors import ConfigError
 from .control import Controller, make_controller, strategy_names
 from .control.base import parse_switch
 from .control.speed_pi import SpeedPI
 from .plant import InverterPlant, make_plant
+from .saturation import make_saturated_plant
 from .scenario import PlantParams, Scenario
 from .sensors import Sensors
 from .trace import Trace, TraceBuilder
@@ -62,9 +64,7 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
             speed_window=p.speed_window,
             seed=p.sensor_seed,
         )
-    return make_plant(
-        machine,
-        p.motor,
+    settings: dict[str, Any] = dict(
         ts=ts,
         u_dc=p.u_dc,
         load=p.load_profile(),
@@ -75,7 +75,11 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
         sensors=sensors,
         period_means=p.period_means,
         held_speed=p.held_speed() if p.held else None,
+        u_dc_gain=p.u_dc_gain,
     )
+    if p.saturation is not None:  # a saturating machine (docs/physics.md#saturation)
+        return make_saturated_plant(machine, p.motor, p.saturation, **settings)
+    return make_plant(machine, p.motor, **settings)
 
 
 def build_controller(scenario: Scenario) -> Controller:

@@ -90,6 +90,10 @@ class PlantParams:
     speed_window: float = quantity(
         "speed from the encoder: count difference over this window", "s", gt=0, default=1e-3
     )
+    u_dc_gain: float = quantity(
+        "measured DC-link voltage over the true one (the sensor's gain: 1 exact)", gt=0,
+        default=1.0,
+    )  # fmt: skip
     sensor_seed: int = quantity(
         "seed of the sensors' noise (same seed, same recording)", ge=0, integer=True, default=0
     )
@@ -105,9 +109,14 @@ class PlantParams:
         "integrate torque, flux and current between the samples: the state's *_avg fields and "
         "the continuous-time figures (off: NaN; costs a third of a run's time)"
     )
+    #: the machine's magnetic saturation (:data:`~.machines.SATURATIONS`, the ``saturation``
+    #: group; docs/physics.md#saturation); None (or model none): the linear machine
+    saturation: Any = None
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.saturation is not None and not self.saturation.on:
+            object.__setattr__(self, "saturation", None)  # model none: the linear plant
         self.load_profile()
         if self.current_adc_bits and math.isnan(self.current_range):
             raise ConfigError(
@@ -214,6 +223,9 @@ class Scenario:
     #: the nodes whose sections are the user's (``run --external``): their keys reach the node
     #: as parameters and are not checked against a built-in node's
     own: frozenset[str] = frozenset()
+    #: the drawn drive this run is (JSON: its index, seed, factors and values; docs/
+    #: reproduction.md#robustness), "" for none: what the recording's metadata says of it
+    draw: str = ""
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)

@@ -28,6 +28,7 @@ __all__ = [
     "compare_figures",
     "fronts_figures",
     "realism_figures",
+    "robustness_figures",
     "run_figures",
     "save",
     "sweep_figures",
@@ -296,6 +297,41 @@ def realism_figures(
         axes[0].legend(fontsize=7)
         fig.tight_layout()
         figs[scenario] = fig
+    return figs
+
+
+def robustness_figures(
+    table: dict[str, dict[str, dict[str, list[float]]]], keys: Sequence[str]
+) -> dict[str, Any]:
+    """The robustness study, one figure per point: a panel per metric (``keys``), each
+    strategy's figure over the drawn drives (``table[point][strategy][metric]``, one value per
+    drive) as a violin with its box (quartiles, whiskers to 1.5 IQR) and mean (a dot); failed
+    drives (NaN) are left out, a metric with no number at a point too."""
+    plt = _pyplot()
+    figs: dict[str, Any] = {}
+    for point, by_strategy in table.items():
+        names = list(by_strategy)
+        shown_keys = [k for k in keys if any(np.isfinite(by_strategy[s][k]).any() for s in names)]
+        if not shown_keys:
+            continue
+        fig, axes = plt.subplots(1, len(shown_keys), figsize=(3.6 * len(shown_keys), 3.8))
+        for ax, key in zip(np.atleast_1d(axes), shown_keys):
+            shown = METRICS[key]
+            data = [
+                [shown.scale * v for v in by_strategy[s][key] if math.isfinite(v)] for s in names
+            ]
+            pos = [i + 1 for i, d in enumerate(data) if d]
+            kept = [d for d in data if d]
+            if kept and all(len(d) > 1 for d in kept):
+                ax.violinplot(kept, positions=pos, showextrema=False)
+            ax.boxplot(kept, positions=pos, widths=0.25, showfliers=False)
+            ax.plot(pos, [float(np.mean(d)) for d in kept], "o", color="black", markersize=3)
+            ax.set_xticks(range(1, len(names) + 1), names, rotation=30, fontsize=7)
+            ax.set_ylabel(shown.axis)
+            ax.grid(True, axis="y", alpha=0.3)
+        fig.suptitle(point, fontsize=9)
+        fig.tight_layout()
+        figs[point] = fig
     return figs
 
 

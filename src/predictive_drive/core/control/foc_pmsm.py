@@ -24,6 +24,7 @@ from ...errors import ConfigError
 from ..fields import check_fields, choice, quantity
 from ..inverter import inverse_park, park
 from ..machines import Machine
+from ..machines.magnetics import PMSMSaturation
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
 from ..svpwm import linear_limit
@@ -40,6 +41,7 @@ from .foc import (
     dead_time_compensation,
     drop_compensation,
 )
+from .maps import MapMTPA, flux_map_of, map_current
 from .mtpa import INJECTION_FORMS, FormulaMTPA, InjectionMTPA, MTPAContext, MTPAInputs, ZeroD
 
 __all__ = [
@@ -112,6 +114,9 @@ class FOCParams:
     delay_compensation: bool = delay_compensation()
     dead_time_compensation: float = dead_time_compensation()
     drop_compensation: float = drop_compensation()
+    #: the controller's own flux map (docs/physics.md#saturation): with a model, foc_formula
+    #: and foc_zero_d take their current for T* from it; none: from the linear ``motor``
+    saturation: PMSMSaturation = PMSMSaturation()
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -195,6 +200,8 @@ class FOCController(FieldOrientedController):
         self._i_prev: complex | None = None
         self._i_dq = 0j
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
+        fm = flux_map_of(m, params.saturation)
+        self._map = None if fm is None else MapMTPA(fm, m.p)
         super().__init__(params, ts=ts)
 
     def refusal(self, name: str) -> str | None:
@@ -240,6 +247,8 @@ class FOCController(FieldOrientedController):
             state.omega_m,
         )
         theta = self.strategy.angle(x, c)
+        if self._map is not None:  # T*'s current from the controller's flux map
+            i_s, theta = map_current(self._map, self.strategy.name, t_ref, i_s, theta)
         i_ref = complex(-i_s * math.sin(theta), sign * i_s * math.cos(theta))
         w_e = c.p * state.omega_m
         u = self.loop.voltage(i_ref, i_dq, w_e, linear_limit(state.u_dc))

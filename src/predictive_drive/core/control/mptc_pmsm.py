@@ -21,6 +21,7 @@ from typing import Any
 
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
+from ..machines.magnetics import PMSMSaturation
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
 from .base import (
@@ -36,6 +37,7 @@ from .base import (
     pmsm_predicted,
 )
 from .candidates import TABLES
+from .maps import ApparentModel, flux_map_of
 from .search import Expand, branch_and_bound
 
 __all__ = [
@@ -118,6 +120,12 @@ class PMSMPrediction:
         self.theta_e = 0.0  #: rotor angle at the sample, rad
         self.w_e = 0.0  #: electrical speed, rad/s
         self.volts: tuple[complex, ...] = ()
+
+    def use(self, c: PMSMCoefficients) -> None:
+        """Predict with the model ``c`` from now on (a flux map's apparent model, see
+        :class:`.maps.ApparentModel`)."""
+        self.c = c
+        self.consts = (c.psi_f, 1.0 / c.l_d, 1.0 / c.l_q, c.torque_k, c.l_d - c.l_q, self.t_floor)
 
     def switching(self, switches: tuple[int, int, int]) -> None:
         """The switching state in force (the one the candidates' commutations count from)."""
@@ -354,6 +362,9 @@ class PMSMControllerParams:
     lambda_sw: float = lambda_sw_field("p.u. (eq 5's cost is normalised)")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
     delay_compensation: bool = delay_compensation()
+    #: the controller's own flux map (docs/physics.md#saturation): with a model, it predicts
+    #: with the map's apparent inductances at the measured current; none: its linear ``motor``
+    saturation: PMSMSaturation = PMSMSaturation()
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -378,6 +389,8 @@ class PMSMController(VectorController):
         self._pred = PMSMPrediction(
             PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor, effort
         )
+        fm = flux_map_of(params.motor, params.saturation)
+        self._apparent = None if fm is None else ApparentModel(fm, self._pred.c)
         super().__init__(params, ts=ts)
 
     def _predict(self, state: State, u_ab: complex) -> State:
@@ -385,6 +398,8 @@ class PMSMController(VectorController):
 
     def _observe(self, state: State) -> None:
         m = self._pred
+        if self._apparent is not None:  # the map's model at this current
+            m.use(self._apparent.at(state.i_alpha, state.i_beta, state.theta_e))
         m.prepare(state.i_alpha, state.i_beta, state.theta_e, state.u_dc)
         self.est_torque = m.te
         self.est_flux = m.psi

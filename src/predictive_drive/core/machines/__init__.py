@@ -10,9 +10,11 @@ from collections.abc import Mapping
 from enum import StrEnum
 
 from .induction import InductionMotor
+from .magnetics import PMSMSaturation
 from .pmsm import PMSM
+from .saturated import IMSaturation
 
-__all__ = ["MOTORS", "Machine", "motor_class"]
+__all__ = ["MOTORS", "SATURATIONS", "Machine", "motor_class", "saturation_class"]
 
 
 class Machine(StrEnum):
@@ -22,6 +24,11 @@ class Machine(StrEnum):
 
 #: machine type → motor parameter class
 MOTORS: Mapping[Machine, type] = {Machine.INDUCTION: InductionMotor, Machine.PMSM: PMSM}
+#: machine type → its saturation settings (the plant's ``saturation`` group; model none: linear)
+SATURATIONS: Mapping[Machine, type] = {
+    Machine.INDUCTION: IMSaturation,
+    Machine.PMSM: PMSMSaturation,
+}
 
 
 def motor_class(machine: str) -> type:
@@ -32,3 +39,9 @@ def motor_class(machine: str) -> type:
         raise ValueError(
             f"unknown machine {machine!r}; valid: {', '.join(m.value for m in Machine)}"
         ) from None
+
+
+def saturation_class(machine: str) -> type:
+    """The saturation settings class of a machine type (see :func:`motor_class`)."""
+    motor_class(machine)  # ValueError for an unknown machine
+    return SATURATIONS[Machine(machine)]
