@@ -20,6 +20,8 @@ import yaml
 
 from .core.control import CONTROLLERS, controller_class
 from .core.control.speed_pi import SpeedPIParams
+from .core.devices import Device, load_device, parse_device
+from .core.losses import LossParams
 from .core.machines import Machine, motor_class
 from .core.scenario import LoggerParams, PlantParams, RunParams, Scenario
 from .errors import ConfigError
@@ -34,6 +36,8 @@ __all__ = [
     "RclLoader",
     "build_section",
     "config_dir",
+    "device_names",
+    "device_of",
     "family_of",
     "load_scenario",
     "load_scenario_text",
@@ -139,6 +143,41 @@ def scenario_names() -> list[str]:
     return sorted(p.stem for p in config_dir().glob("*.yaml"))
 
 
+def device_names() -> list[str]:
+    """The device files of the scenario folder's ``devices/`` (their names)."""
+    return sorted(p.stem for p in (config_dir() / "devices").glob("*.json"))
+
+
+def device_of(plant: PlantParams, where: str | Path, *, text: str | None = None) -> Device | None:
+    """The devices ``plant.losses.device`` names — a file of the scenario folder's ``devices/``
+    by its name, or a path — read and checked against the DC link (None where it names none).
+    ``text``: the file's text as a recording stored it, read instead. ConfigError names the
+    key, the file and the field."""
+    name = plant.losses.device
+    if not name:
+        return None
+    key = f"{where}: /drive/plant.losses.device"
+    if text is not None:
+        device = parse_device(text, f"{name} (stored)")
+    else:
+        p = Path(name)
+        if p.suffix != ".json" and "/" not in name:
+            p = config_dir() / "devices" / f"{name}.json"
+            if not p.is_file():
+                raise ConfigError(
+                    f"{key}: no device {name!r}; available: {', '.join(device_names())} (or "
+                    f"give a path to a .json device file)"
+                )
+        elif not p.is_file():
+            raise ConfigError(f"{key}: no device file {p}")
+        try:
+            device = load_device(p)
+        except ConfigError as e:
+            raise ConfigError(f"{key}: {e}") from None
+    device.check_voltage(plant.u_dc, key)
+    return device
+
+
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """The file of a scenario given by name (``im_paper``: the scenario folder's
     ``im_paper.yaml``) or by path (with a .yaml suffix, a folder in it, or a file that exists). A
@@ -188,7 +227,7 @@ def section_class(
         ctrl = controller_class(family).params_type
         return ctrl, nested_types(ctrl)
     fixed: dict[str, tuple[type, dict[str, type]]] = {
-        "plant": (PlantParams, {"motor": motor_class(machine)}),
+        "plant": (PlantParams, {"motor": motor_class(machine), "losses": LossParams}),
         "speed_pi": (SpeedPIParams, {}),
         "metrics_logger": (LoggerParams, {}),
     }
@@ -330,7 +369,12 @@ def load_scenario(
 
 
 def load_scenario_text(
-    text: str, path: str | Path, *, legacy: bool = False, own: Collection[str] = ()
+    text: str,
+    path: str | Path,
+    *,
+    legacy: bool = False,
+    own: Collection[str] = (),
+    device_text: str | None = None,
 ) -> Scenario:
     """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in).
     ``legacy``: a recording's stored text, which may predate the ``family`` key. ``own``: nodes
@@ -338,7 +382,8 @@ def load_scenario_text(
     node as they are and not checked; the scenario holds the built-in settings only where the
     section happens to be a valid one (else None), and a torque controller of one's own is
     named as its family's where the section names one of this machine (else the machine's
-    first)."""
+    first). The devices ``plant.losses.device`` names are read (``device_text``: from that text,
+    as a recording stored it)."""
     unknown_own = sorted(set(own) - set(OWN_NODES))
     if unknown_own:
         raise ConfigError(
@@ -384,6 +429,7 @@ def load_scenario_text(
             built[node] = build_section(cls, params, nested, f"{path}: {key}")
         except ConfigError:
             built[node] = None
+    device = device_of(built["plant"], path, text=device_text)
     try:
         sc = Scenario(
             run,
@@ -396,6 +442,7 @@ def load_scenario_text(
             text=text,
             external="torque_controller" in own,
             own=frozenset(own),
+            device=device,
         )
     except ConfigError as e:  # its messages name the section and key
         raise ConfigError(f"{path}: {e}") from None
@@ -473,20 +520,22 @@ def apply_settings(
             )
         params = _params(doc, section, where)
         theirs = node in own
-        for part in path[:-1]:
-            if theirs and part not in params:
-                params[part] = {}
+        for depth, part in enumerate(path[:-1]):
+            if part not in params and (
+                theirs or part in _defaulted(doc, node, where, path[:depth])
+            ):
+                params[part] = {}  # the user's group, or a group of defaults the file leaves out
             sub = params.get(part)
             if not isinstance(sub, dict):
                 raise ConfigError(f"setting {key!r}: {section} has no group {part!r}")
             params = sub
         leaf = path[-1]
-        optional = _defaulted(doc, node, where) if len(path) == 1 else set()
+        optional = _defaulted(doc, node, where, path[:-1])
         if leaf not in params and leaf not in optional and not theirs:
             family = params.get(FAMILY_KEY) if node == "torque_controller" else None
             meant = [k for k in _setting_keys(doc, where) if k.rsplit(".", 1)[-1] == leaf]
             raise ConfigError(
-                f"setting {key!r}: {section} has no key {leaf!r} here"
+                f"setting {key!r}: {'.'.join([section, *path[:-1]])} has no key {leaf!r} here"
                 + (f"; did you mean {' or '.join(meant)}?" if meant else "")
                 + f" (keys there: {', '.join(sorted(set(params) | optional))})"
                 + _family_hint(leaf, family)
@@ -518,21 +567,31 @@ def _setting_keys(doc: dict[str, Any], where: str | Path) -> list[str]:
     for node in NODES:
         if f"{NAMESPACE}/{node}" in doc:
             keys += walk(_params(doc, f"{NAMESPACE}/{node}", where), f"{node}.")
-            keys += [f"{node}.{k}" for k in sorted(_defaulted(doc, node, where))]
+            for k in sorted(_defaulted(doc, node, where)):
+                group = _defaulted(doc, node, where, [k])
+                keys += [f"{node}.{k}.{g}" for g in sorted(group)] or [f"{node}.{k}"]
     return list(dict.fromkeys(keys))
 
 
-def _defaulted(doc: dict[str, Any], node: str, where: str | Path) -> set[str]:
-    """The keys of ``node``'s section a scenario file may leave out (they have a default): a
-    setting may give them though the file does not."""
-    if node not in NODES:
+def _defaulted(
+    doc: dict[str, Any], node: str, where: str | Path, group: Collection[str] = ()
+) -> set[str]:
+    """The keys of ``node``'s section (of its nested ``group``, e.g. ``["losses"]``) a scenario
+    file may leave out (they have a default): a setting may give them though the file does
+    not."""
+    if node not in NODES or len(group) > 1:
         return set()
     machine = _params(doc, SHARED, where).get("machine")
     family = _params(doc, f"{NAMESPACE}/torque_controller", where).get(FAMILY_KEY)
     try:
-        cls, _ = section_class(node, str(machine), family)
+        cls, nested = section_class(node, str(machine), family)
     except (KeyError, ValueError):
         return set()
+    if group:
+        sub = nested.get(next(iter(group)))
+        if sub is None:
+            return set()
+        cls = sub
     return {f.name for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 

@@ -123,6 +123,8 @@ def bag_info(
         "strategy_names": list(strategy_names(sc.family)),
         # a controller of the user's own: the command contract it was held to
         **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
+        # the inverter's devices (plant.losses.device): their file, as the run read it
+        **({"device_json": sc.device.text} if sc.device is not None else {}),
         **({"external": json.dumps(own)} if own else {}),
     }
 
@@ -140,7 +142,9 @@ def scenario_of(info: Mapping[str, str], where: Path) -> Scenario:
     (the sections of the user's own nodes theirs, as when it ran)."""
     own = [n.name for n in own_nodes(info)]
     where_ = f"{where} (stored scenario)"
-    sc = load_scenario_text(info["scenario_yaml"], where_, legacy=True, own=own)
+    sc = load_scenario_text(
+        info["scenario_yaml"], where_, legacy=True, own=own, device_text=info.get("device_json")
+    )
     return sc.with_strategy(info["strategy"]).with_duration(float(info["duration"]))
 
 

@@ -10,7 +10,9 @@ from typing import Any
 from ..errors import ConfigError
 from .control import EXTERNAL, controller_class
 from .control.speed_pi import SpeedPIParams
+from .devices import Device
 from .fields import check_fields, choice, flag, quantity
+from .losses import LossParams
 from .machines import Machine
 from .signals import EXTERNAL_PREFIX, external_name
 from .timebase import StepProfile, step_index
@@ -54,8 +56,9 @@ class PlantParams:
     """Plant: machine, inverter, load steps, integrator sub-step; what makes it a real drive
     (docs/physics.md#a-real-drive), every one ideal by default: the computation delay, the
     inverter's dead time and device drops, the current and position sensors; whether a load
-    machine holds its speed (docs/physics.md#mechanics-and-load); and whether it publishes the
-    period means (docs/physics.md#continuous-time-figures)."""
+    machine holds its speed (docs/physics.md#mechanics-and-load); whether it publishes the
+    period means (docs/physics.md#continuous-time-figures); and its losses and temperatures
+    (``losses``, docs/physics.md#losses-and-temperature)."""
 
     motor: Any  #: the machine type's motor parameters (:data:`~.machines.MOTORS`)
     u_dc: float = quantity("DC-link voltage", "V", gt=0)
@@ -105,6 +108,7 @@ class PlantParams:
         "integrate torque, flux and current between the samples: the state's *_avg fields and "
         "the continuous-time figures (off: NaN; costs a third of a run's time)"
     )
+    losses: LossParams = LossParams()  #: everything off unless the section says
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -122,6 +126,12 @@ class PlantParams:
                     f"(plant.held_speed_times): the load machine holding the shaft takes "
                     f"whatever torque the motor makes; give load_values: [0.0]"
                 )
+        if self.losses.device and self.device_drop:
+            raise ConfigError(
+                f"plant.device_drop: {self.device_drop:g} V beside plant.losses.device "
+                f"{self.losses.device!r}: the device file gives the on-state voltages (one model "
+                f"of a conducting device); give device_drop: 0.0"
+            )
         if not math.isnan(self.current_range) and not self.current_adc_bits:
             raise ConfigError(
                 "plant.current_range: given without plant.current_adc_bits (1..24): "
@@ -214,6 +224,8 @@ class Scenario:
     #: the nodes whose sections are the user's (``run --external``): their keys reach the node
     #: as parameters and are not checked against a built-in node's
     own: frozenset[str] = frozenset()
+    #: the inverter's devices, read from the file ``plant.losses.device`` names (None: none)
+    device: Device | None = None
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)
