@@ -239,3 +239,35 @@ def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_pa
     tj = tr.col("state", f"tj_{first.device}")
     k = round(first.t_first / sc.ts)
     assert tj[k] > 175.0 >= np.max(tj[:k]) and first.tj_max == pytest.approx(np.max(tj))
+
+
+def test_the_losses_figure_draws_the_recorded_losses_and_temperatures():
+    pytest.importorskip("matplotlib")
+    from predictive_drive.reports.figures import Run, run_figures
+
+    settings = {"plant.losses.device": FUJI, "plant.losses.machine": True}
+    sc = scenario("im_short", settings, "db_mptc")
+    tr = run_inprocess(sc, steps=1000)
+    fig = run_figures(Run(tr, sc, "im_short"))["losses"]
+    ax, tx = fig.axes
+    lines = {ln.get_label(): ln for ln in ax.get_lines()}
+    m = round(sc.plant.losses.thermal_step / sc.ts)
+    p = tr.col("state", "p_sw_t")[1:]
+    drawn = lines["switching, transistors"]
+    np.testing.assert_allclose(drawn.get_xdata(), tr.col("state", "t")[m:])
+    np.testing.assert_allclose(drawn.get_ydata()[5], p[5 : 5 + m].mean(), rtol=1e-12)
+    temps = {ln.get_label(): ln for ln in tx.get_lines()}
+    assert len(temps) == len(DEVICES) + 3
+    np.testing.assert_array_equal(temps["T_j ta_hi"].get_ydata(), tr.col("state", "tj_ta_hi"))
+    np.testing.assert_array_equal(temps["winding"].get_ydata(), tr.col("state", "t_winding"))
+
+
+def test_the_live_views_layout_plots_every_junction_temperature():
+    from predictive_drive.interface import TOPICS
+    from predictive_drive.reports.layout import foxglove_layout
+
+    panels = foxglove_layout()["configById"].values()
+    (temps,) = [p for p in panels if p.get("title", "").startswith("temperatures")]
+    fields = TOPICS["state"].fields
+    named = [fields[int(p["value"].split("[")[1].rstrip("]"))] for p in temps["paths"]]
+    assert named == [*(f"tj_{d}" for d in DEVICES), "t_sink", "t_winding", "t_rotor"]
