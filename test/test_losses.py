@@ -271,3 +271,22 @@ def test_the_live_views_layout_plots_every_junction_temperature():
     fields = TOPICS["state"].fields
     named = [fields[int(p["value"].split("[")[1].rstrip("]"))] for p in temps["paths"]]
     assert named == [*(f"tj_{d}" for d in DEVICES), "t_sink", "t_winding", "t_rotor"]
+
+
+def test_the_drive_cycle_heats_the_plant_away_from_the_controllers_model():
+    """ipmsm_drive_cycle (docs/physics.md#a-drive-cycle): 60 s with the SiC devices and the
+    machine's losses; its first tenth of a second, the winding's time constant shortened so it
+    heats within it: the plant's R_s leaves the controller's, which stays at 20 °C."""
+    sc = scenario("ipmsm_drive_cycle", {"plant.losses.winding_tau": 0.05})
+    assert sc.run.duration >= 60.0 and sc.device is not None and sc.device.type == "SiC-MOSFET"
+    assert len(set(sc.speed_pi.speed_values_rpm)) >= 5 and len(set(sc.plant.load_values)) >= 5
+    c = build(sc)
+    state, ref = c.plant.state(), c.speed_pi.initial()
+    for _ in range(2000):
+        cmd = c.controller.step(state, ref)
+        ref = c.speed_pi.step(state)
+        state = c.plant.step(cmd)
+    s = dict(zip(type(state)._fields, state))
+    assert s["t_winding"] > 21.0 and c.plant._coef.r_s > 1.003 * sc.controller.motor.r_s
+    assert sc.controller.motor == sc.plant.motor  # the controller's model is the plant's at 20 °C
+    assert all(math.isfinite(s[f]) for f in LOSS_FIELDS) and s["p_iron"] > 0

@@ -370,8 +370,9 @@ class InverterPlant:
         """One period through an inverter with dead time and device drops: during the dead time
         after each edge of a leg both its devices are off and the leg follows its current's sign
         (low while the current flows out of it, high while it flows in); every conducting device
-        drops ``device_drop`` against the current. The signs are the currents' at the start of
-        each segment."""
+        drops its on-state voltage against the current (``device_drop``, or its device's line
+        v0 + r·|i| at its T_j). The signs and the currents are those at each segment's start;
+        with losses each segment goes into the ledger."""
         ra, rb, rc, da, db, dc = pulses
         rises, falls, duties = (ra, rb, rc), (ra + da, rb + db, rc + dc), (da, db, dc)
         before = self.switches
