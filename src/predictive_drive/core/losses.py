@@ -113,8 +113,8 @@ class LossParams:
 class Ledger:
     """The losses of one plant (see the module's docstring). The plant reads the on-state lines
     :attr:`v0` and :attr:`r` (per device, at its T_j; a constant ``drop`` without a device
-    file) for its leg voltages, calls :meth:`book` at every segment's start and :meth:`close`
-    at every period's end, and publishes :attr:`fields`."""
+    file) for its leg voltages, hands :meth:`close` each period's segments at its end (one
+    call a period: the bookkeeping runs in one loop), and publishes :attr:`fields`."""
 
     def __init__(
         self,
@@ -125,19 +125,21 @@ class Ledger:
         u_dc: float,
         drop: float,
         heat: Callable[[float, float], tuple[float, float]],
-        rotor: bool,
-        held: bool,
+        rotor: tuple[int, int, float, float] | None = None,
+        torque: Callable[[tuple[Any, ...]], float] | None = None,
     ) -> None:
         """``heat(t_winding, t_rotor)``: sets the plant's parameters for these temperatures and
-        returns its (R_s, R_r) (Ω; R_r 0 for a machine without rotor copper: ``rotor``). ``held``:
-        a load machine holds the speed (the power into it is T_e·ω_m)."""
+        returns its (R_s, R_r) (Ω). ``rotor``: a machine with rotor copper (an induction
+        motor's), where its state holds ψ_s and i_s, and L_s, 1/L_m: the rotor current is
+        (ψ_s - L_s i_s)/L_m. ``torque(x)``: where a load machine holds the speed, the torque of
+        state x (the power into the load is T_e·ω_m)."""
         self.params = params
         self.device = device
         self.ts = ts
         self.u_dc = u_dc
         self._heat = heat
-        self._rotor = rotor
-        self._held = held
+        self._rotor_of = rotor
+        self._torque_of = torque
         self._iron = params.machine and bool(params.iron_hysteresis or params.iron_eddy)
         #: the thermal networks advance every this many periods
         self.every = max(1, round(params.thermal_step / ts)) if params.thermal_step else 1
@@ -149,14 +151,11 @@ class Ledger:
         self._e_cond = [0.0] * _N
         self._e_sw = [0.0] * _N
         self._acc = [0.0] * _N  #: each device's energy since the last thermal step
-        self._e_dc = self._e_cu = self._e_cur = self._e_te = 0.0
         self._acc_cu_s = self._acc_cu_r = 0.0
         # the segment open: its length (s), phase currents and current vectors at its start,
         # per leg its level, device and on-state voltage against the current
-        self._open: tuple[Any, ...] = (
-            0.0, (0.0, 0.0, 0.0), 0j, 0j, 0.0, [False] * 3, [_D_LO, _D_LO + 4, _D_LO + 8],
-            [0.0] * 3,
-        )  # fmt: skip
+        #: the levels and devices of the legs at the end of the last period
+        self._last: tuple[list[bool], list[int]] = ([False] * 3, [_D_LO, _D_LO + 4, _D_LO + 8])
         self._psi: complex | None = None
         t0 = params.coolant
         self._tj = [math.nan] * _N
@@ -233,45 +232,102 @@ class Ledger:
         self._tables = tables
         self._tj = tj
 
-    # -- per segment --------------------------------------------------------------------------
-    def book(
+    # -- per period ---------------------------------------------------------------------------
+    def close(
         self,
-        h: float,
-        currents: tuple[float, float, float],
+        trail: list[tuple[Any, ...]],
+        x: tuple[Any, ...],
         i_s: complex,
-        i_r: complex,
-        te: float,
-        highs: list[bool],
-        devs: list[int],
-        drops: list[float],
+        currents: tuple[float, float, float],
+        psi: complex,
+        omega: tuple[float, float],
+        turned: float,
+        load: float,
+        friction: float,
     ) -> None:
-        """A segment of ``h`` s starts with these phase currents (A), stator and rotor current
-        vectors (αβ, A), torque (N·m; used where the load machine holds the speed) and, per leg,
-        its level, conducting device and on-state voltage against the current (V): the segment
-        before it is booked, and each leg whose level changes commutates."""
-        hp, a, s0, q0, te0, old, dev, drop = self._open
-        if hp:
-            hh = 0.5 * hp
-            b0, b1, b2 = currents
-            q_0, q_1, q_2 = hh * (a[0] + b0), hh * (a[1] + b1), hh * (a[2] + b2)  # ∫i, linear
-            e = self._e_cond
-            e[dev[0]] += drop[0] * q_0
-            e[dev[1]] += drop[1] * q_1
-            e[dev[2]] += drop[2] * q_2
-            # ∫|i|² = h(a² + ab + b²)/3 for a current linear from a to b (× 1.5 R at the close)
-            ar, ai, br, bi = s0.real, s0.imag, i_s.real, i_s.imag
-            cu = hp * (ar * (ar + br) + ai * (ai + bi) + br * br + bi * bi)
-            if self._rotor:
-                ar, ai, br, bi = q0.real, q0.imag, i_r.real, i_r.imag
-                self._e_cur += hp * (ar * (ar + br) + ai * (ai + bi) + br * br + bi * bi)
-            self._e_cu += cu
-            self._e_dc += old[0] * q_0 + old[1] * q_1 + old[2] * q_2
-            self._e_te += hh * (te0 + te)
-        if highs != old and self._tables:
-            for leg in (0, 1, 2):
-                if highs[leg] != old[leg]:
-                    self._commutate(leg, dev[leg] & 3, devs[leg] & 3, currents[leg])
-        self._open = (h, currents, i_s, i_r, te, highs, devs, drops)
+        """The period's segments in order, each ``(h, x, i_s, currents, highs, devs, drops)``:
+        its length (s), the state, stator current (αβ) and phase currents at its start and, per
+        leg, its level, conducting device and on-state voltage against the current (V); then the
+        state, currents and stator flux ψ_s (αβ) at the period's end, ``omega`` the speed at its
+        start and end, ``turned`` the shaft's angle over it, ``load`` the load torque,
+        ``friction`` the viscous coefficient in the equations. Books each segment (its currents
+        linear between its ends) and each leg's change of level, the period's powers, every
+        :attr:`every` periods the temperatures; sets :attr:`fields`."""
+        e = self._e_cond
+        tables = self._tables
+        rotor, torque = self._rotor_of, self._torque_of
+        old, dev = self._last
+        e_dc = e_cu = e_cur = e_te = 0.0
+        ends = [(seg[1], seg[2], seg[3]) for seg in trail[1:]]
+        ends.append((x, i_s, currents))
+        for (h, _, sa, a, highs, devs, drops), (_, sb, b) in zip(trail, ends):
+            if highs != old and tables:
+                for leg in (0, 1, 2):
+                    if highs[leg] != old[leg]:
+                        self._commutate(leg, dev[leg] & 3, devs[leg] & 3, a[leg])
+            hh = 0.5 * h
+            a0, a1, a2 = a
+            b0, b1, b2 = b
+            q0, q1, q2 = hh * (a0 + b0), hh * (a1 + b1), hh * (a2 + b2)  # ∫i, linear
+            d0, d1, d2 = devs
+            v0, v1, v2 = drops
+            e[d0] += v0 * q0
+            e[d1] += v1 * q1
+            e[d2] += v2 * q2
+            g0, g1, g2 = highs
+            e_dc += g0 * q0 + g1 * q1 + g2 * q2
+            # ∫|i|² = h(a² + ab + b²)/3 for a current linear from a to b (× 1.5 R below)
+            ar, ai, br, bi = sa.real, sa.imag, sb.real, sb.imag
+            e_cu += h * (ar * (ar + br) + ai * (ai + bi) + br * br + bi * bi)
+            old, dev = highs, devs
+        if rotor is not None:  # an induction motor's rotor current (ψ_s - L_s i_s)/L_m
+            k_psi, k_i, l_s, inv_l_m = rotor
+            r1 = (trail[0][1][k_psi] - l_s * trail[0][1][k_i]) * inv_l_m if trail else 0j
+            for (h, *_), (xb, _, _) in zip(trail, ends):
+                r0, r1 = r1, (xb[k_psi] - l_s * xb[k_i]) * inv_l_m
+                ar, ai, br, bi = r0.real, r0.imag, r1.real, r1.imag
+                e_cur += h * (ar * (ar + br) + ai * (ai + bi) + br * br + bi * bi)
+        if torque is not None:  # the torque a load machine holding the speed takes
+            t1 = torque(trail[0][1]) if trail else 0.0
+            for (h, *_), (xb, _, _) in zip(trail, ends):
+                t0, t1 = t1, torque(xb)
+                e_te += 0.5 * h * (t0 + t1)
+        self._last = (old, dev)
+        inv = 1.0 / self.ts
+        w0, w1 = omega
+        p_fe = 0.0
+        before, self._psi = self._psi, psi
+        if self._iron and before is not None:
+            p = self.params
+            cross = before.real * psi.imag - before.imag * psi.real
+            dot = before.real * psi.real + before.imag * psi.imag
+            f = abs(math.atan2(cross, dot)) * inv / (2.0 * math.pi)  # the flux's frequency
+            p_fe = (p.iron_hysteresis * f + p.iron_eddy * f * f) * (abs(before) + abs(psi)) ** 2 / 4
+        cu_s = 0.5 * self.r_s * e_cu * inv
+        cu_r = 0.5 * self.r_r * e_cur * inv
+        e_cond, e_sw = e, self._e_sw
+        per_device = [(c + w) * inv for c, w in zip(e_cond, e_sw)]
+        self._acc = [a + b for a, b in zip(self._acc, per_device)]
+        self._acc_cu_s += cu_s + p_fe
+        self._acc_cu_r += cu_r
+        self._e_cond = [0.0] * _N
+        self._e_sw = [0.0] * _N
+        self._periods += 1
+        if self._periods == self.every:
+            self._advance()
+        self.fields = (
+            self.u_dc * e_dc * inv,
+            e_te * inv * w1 if self._torque_of is not None else load * turned * inv,
+            cu_s + cu_r,
+            p_fe,
+            friction * (w0 * w0 + w0 * w1 + w1 * w1) / 3.0,
+            (e_cond[0] + e_cond[2] + e_cond[4] + e_cond[6] + e_cond[8] + e_cond[10]) * inv,
+            (e_cond[1] + e_cond[3] + e_cond[5] + e_cond[7] + e_cond[9] + e_cond[11]) * inv,
+            (e_sw[0] + e_sw[2] + e_sw[4] + e_sw[6] + e_sw[8] + e_sw[10]) * inv,
+            (e_sw[1] + e_sw[3] + e_sw[5] + e_sw[7] + e_sw[9] + e_sw[11]) * inv,
+            *per_device,
+            *self._temperatures,
+        )
 
     def _commutate(self, leg: int, old: int, new: int, current: float) -> None:
         """Leg ``leg`` changes level with ``current`` flowing out of it: E_off of a transistor
@@ -285,63 +341,6 @@ class Ledger:
             sw[base + new] += grid_value(tables[base + new][0], current)
             diode = base + (_D_LO if new == _T_HI else _D_HI)
             sw[diode] += grid_value(tables[diode][0], current)
-
-    # -- per period ---------------------------------------------------------------------------
-    def close(
-        self,
-        currents: tuple[float, float, float],
-        i_s: complex,
-        i_r: complex,
-        te: float,
-        psi: complex,
-        omega: tuple[float, float],
-        turned: float,
-        load: float,
-        friction: float,
-    ) -> None:
-        """The period ends with these currents, torque and stator flux ψ_s (αβ); ``omega``: the
-        speed at its start and end, ``turned`` the shaft's angle over it, ``load`` the load
-        torque, ``friction`` the viscous coefficient in the equations. Its powers, every
-        :attr:`every` periods the temperatures, and :attr:`fields`."""
-        _, _, _, _, _, highs, devs, drops = self._open
-        self.book(0.0, currents, i_s, i_r, te, highs, devs, drops)
-        inv = 1.0 / self.ts
-        w0, w1 = omega
-        p_fe = 0.0
-        last, self._psi = self._psi, psi
-        if self._iron and last is not None:
-            p = self.params
-            cross = last.real * psi.imag - last.imag * psi.real
-            dot = last.real * psi.real + last.imag * psi.imag
-            f = abs(math.atan2(cross, dot)) * inv / (2.0 * math.pi)  # the flux's frequency
-            p_fe = (p.iron_hysteresis * f + p.iron_eddy * f * f) * (abs(last) + abs(psi)) ** 2 / 4
-        cu_s = 0.5 * self.r_s * self._e_cu * inv
-        cu_r = 0.5 * self.r_r * self._e_cur * inv
-        e_cond, e_sw = self._e_cond, self._e_sw
-        per_device = [(c + w) * inv for c, w in zip(e_cond, e_sw)]
-        e_dc, e_te = self._e_dc, self._e_te
-        self._acc = [a + b for a, b in zip(self._acc, per_device)]
-        self._acc_cu_s += cu_s + p_fe
-        self._acc_cu_r += cu_r
-        self._e_cond = [0.0] * _N
-        self._e_sw = [0.0] * _N
-        self._e_dc = self._e_cu = self._e_cur = self._e_te = 0.0
-        self._periods += 1
-        if self._periods == self.every:
-            self._advance()
-        self.fields = (
-            self.u_dc * e_dc * inv,
-            e_te * inv * w1 if self._held else load * turned * inv,
-            cu_s + cu_r,
-            p_fe,
-            friction * (w0 * w0 + w0 * w1 + w1 * w1) / 3.0,
-            (e_cond[0] + e_cond[2] + e_cond[4] + e_cond[6] + e_cond[8] + e_cond[10]) * inv,
-            (e_cond[1] + e_cond[3] + e_cond[5] + e_cond[7] + e_cond[9] + e_cond[11]) * inv,
-            (e_sw[0] + e_sw[2] + e_sw[4] + e_sw[6] + e_sw[8] + e_sw[10]) * inv,
-            (e_sw[1] + e_sw[3] + e_sw[5] + e_sw[7] + e_sw[9] + e_sw[11]) * inv,
-            *per_device,
-            *self._temperatures,
-        )
 
     def _advance(self) -> None:
         """One thermal step with the mean losses since the last one."""

@@ -58,8 +58,6 @@ ALL_LOW = PhasePulses(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _K = COMMAND_INDEX.k
 _IM_I, _IM_PSI, _IM_W, _IM_TH = IM_STATE.i_s, IM_STATE.psi_s, IM_STATE.omega_m, IM_STATE.theta_m
 _PM_I, _PM_W, _PM_TH = PMSM_STATE.i_dq, PMSM_STATE.omega_m, PMSM_STATE.theta_m
-#: the ledger's rotor current and torque where it needs neither
-_NO_EXTRAS = (0j, 0.0)
 #: a device's place in its leg (:data:`~.signals.DEVICES`): upper transistor and diode, lower
 _T_HI, _D_HI, _T_LO, _D_LO = range(4)
 #: the state's fields that are means over the period that ended at k, in the order
@@ -170,7 +168,7 @@ class InverterPlant:
         if losses is not None and losses.on:
             self._ledger = Ledger(
                 losses, device, ts=ts, u_dc=u_dc, drop=device_drop, heat=self._heat,
-                rotor=self.rotor_copper, held=self._held is not None,
+                rotor=self._rotor(), torque=None if self._held is None else self._torque,
             )  # fmt: skip
         #: each device's on-state voltage v0 + r·|i| (V, Ω; per :data:`~.signals.DEVICES`), and
         #: whether a transistor conducts reverse current while on (a MOSFET's channel)
@@ -197,9 +195,6 @@ class InverterPlant:
         """The :data:`Point` of state ``x``: what the period means are taken of."""
         raise NotImplementedError
 
-    #: the machine has rotor copper (an induction motor's cage)
-    rotor_copper = False
-
     def _coefficients(self, motor: Any) -> Any:
         """The coefficients of ``motor`` as this plant integrates them: a shaft a load machine
         holds is turned by no torque and loses nothing to friction in the equations."""
@@ -211,9 +206,14 @@ class InverterPlant:
         returns (R_s, R_r) in Ω."""
         raise NotImplementedError
 
-    def _rotor_current(self, x: tuple[Any, ...]) -> complex:
-        """The rotor current in αβ of state ``x`` (A; 0 for a machine without rotor copper)."""
-        return 0j
+    def _rotor(self) -> tuple[int, int, float, float] | None:
+        """Where a machine with rotor copper (an induction motor) holds ψ_s and i_s in its
+        state, and L_s, 1/L_m: its rotor current (ψ_s - L_s·i_s)/L_m; None for a PMSM."""
+        return None
+
+    def _torque(self, x: tuple[Any, ...]) -> float:
+        """The torque of state ``x``, N·m."""
+        return self._point(x)[0]
 
     def _flux_ab(self, x: tuple[Any, ...]) -> complex:
         """The stator flux linkage in αβ of state ``x`` (Wb)."""
@@ -400,7 +400,7 @@ class InverterPlant:
         ts, u_dc = self.ts, self.u_dc
         v0, slope, reverse = self._v0, self._r, self._reverse
         ledger = self._ledger
-        extras = self.rotor_copper or self._held is not None
+        trail: list[tuple[Any, ...]] = []  # the segments, for the ledger
         load = self.load
         x = x_start = self.x
         points = sorted(cuts)
@@ -430,31 +430,25 @@ class InverterPlant:
                 devs.append(dev)
                 drops.append(drop)
             if ledger is not None:
-                i_r, te = self._extras(x) if extras else _NO_EXTRAS
-                ledger.book((t1 - t0) * ts, currents, i_ab, i_r, te, highs, devs, drops)
+                trail.append(((t1 - t0) * ts, x, i_ab, currents, highs, devs, drops))
             x = self._advance(x, (clarke(*legs), load), (t1 - t0) * ts)
         self.x = x
         if self._means:
             self._close_period()
         if ledger is not None:
-            self._close_ledger(ledger, x_start, x)
+            self._close_ledger(ledger, trail, x_start, x)
         self._next_period()
         return self.state()
 
-    def _extras(self, x: tuple[Any, ...]) -> tuple[complex, float]:
-        """What the ledger needs of state ``x`` beyond the stator current: the rotor current
-        (copper) and, where a load machine holds the speed, the torque (what it takes)."""
-        return (
-            self._rotor_current(x) if self.rotor_copper else 0j,
-            self._point(x)[0] if self._held is not None else 0.0,
-        )
-
-    def _close_ledger(self, ledger: Ledger, x0: tuple[Any, ...], x: tuple[Any, ...]) -> None:
-        """The period from state ``x0`` to ``x`` ends: its losses, temperatures, fields."""
+    def _close_ledger(
+        self, ledger: Ledger, trail: list[tuple[Any, ...]], x0: tuple[Any, ...], x: tuple[Any, ...]
+    ) -> None:
+        """The period from state ``x0`` to ``x`` in the segments ``trail`` ends: into the
+        ledger (its losses, temperatures, fields)."""
         i_ab = self._i_ab(x)
         w, th = self.speed_index, self.angle_index
         ledger.close(
-            inverse_clarke(i_ab), i_ab, *self._extras(x), self._flux_ab(x), (x0[w], x[w]),
+            trail, x, i_ab, inverse_clarke(i_ab), self._flux_ab(x), (x0[w], x[w]),
             x[th] - x0[th], self.load, self._coef.b,
         )  # fmt: skip
 
@@ -469,7 +463,6 @@ class InductionPlant(InverterPlant):
     speed_index = _IM_W
     angle_index = _IM_TH
     default_integrator = staticmethod(induction_exact)
-    rotor_copper = True
 
     def _heat(self, t_winding: float, t_rotor: float) -> tuple[float, float]:
         m, p = self.motor, self._ledger_params
@@ -479,10 +472,9 @@ class InductionPlant(InverterPlant):
         self._coef = self._coefficients(_Hot(vars(m), sigma=m.sigma, r_s=r_s, r_r=r_r))
         return r_s, r_r
 
-    def _rotor_current(self, x: tuple[Any, ...]) -> complex:
+    def _rotor(self) -> tuple[int, int, float, float] | None:
         m = self.motor  # L_s, L_m do not follow temperature
-        i: complex = (x[_IM_PSI] - m.l_s * x[_IM_I]) * (1.0 / m.l_m)
-        return i
+        return _IM_PSI, _IM_I, m.l_s, 1.0 / m.l_m
 
     def _flux_ab(self, x: tuple[Any, ...]) -> complex:
         psi: complex = x[_IM_PSI]
