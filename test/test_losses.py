@@ -290,3 +290,26 @@ def test_the_drive_cycle_heats_the_plant_away_from_the_controllers_model():
     assert s["t_winding"] > 21.0 and c.plant._coef.r_s > 1.003 * sc.controller.motor.r_s
     assert sc.controller.motor == sc.plant.motor  # the controller's model is the plant's at 20 °C
     assert all(math.isfinite(s[f]) for f in LOSS_FIELDS) and s["p_iron"] > 0
+
+
+def test_report_prints_the_losses_efficiency_and_a_device_above_its_rating(tmp_path, capsys):
+    from predictive_drive.api.report import report
+    from predictive_drive.api.run import run_inprocess_to_bag
+    from predictive_drive.cli.common import print_recording
+
+    settings = {
+        "plant.losses.device": WOLFSPEED,
+        "plant.losses.machine": True,
+        "plant.losses.mounting_r_th": 30.0,  # a device hung in the air: it runs hot
+        "plant.losses.thermal_step": 5e-5,
+    }
+    run_inprocess_to_bag(scenario("ipmsm_short", settings).with_duration(0.15), tmp_path / "b")
+    r = report(tmp_path / "b")
+    print_recording(r)
+    out = capsys.readouterr().out
+    m = r.metrics
+    assert f"T {m.p_cond_t:.3g} W  D {m.p_cond_d:.3g} W" in out
+    assert f"{100 * m.efficiency:.2f} %" in out and "into the load of" in out
+    assert f"{m.tj_max:.1f} °C" in out and f"{m.tj_max_device} at" in out and "(rated 175" in out
+    (o, *_) = r.details.overheats
+    assert f"{'OVER T_j':<11}{o.device:>16}   above its rated 175 °C from {o.t_first:.4g} s" in out
