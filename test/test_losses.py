@@ -208,6 +208,12 @@ def test_a_run_without_losses_has_no_loss_figures_and_one_with_them_reads_them_b
     assert r.metrics.tj_max_device == DEVICES[int(np.argmax(tj.max(axis=1)))]
     assert 0.0 < r.metrics.efficiency < 1.0 or math.isnan(r.metrics.efficiency)
     assert r.details.device == "C3M0060065J" and r.details.rated_tj == (175.0, 175.0)
+    from predictive_drive.core.metrics import METRICS
+
+    for m in (plain, r.metrics):  # every declared figure formats, a sweep's or a table's
+        scalars = {k: v for k, v in m.as_dict().items() if isinstance(v, (int, float, str))}
+        shown = {k: METRICS[k].with_unit(v) for k, v in scalars.items()}
+        assert shown["tj_max_device"] == (r.metrics.tj_max_device if m is r.metrics else "-")
     # an independent reader sees them as fields of /drive/state, by label
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore

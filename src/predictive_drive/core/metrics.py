@@ -55,14 +55,16 @@ class Metric:
     fmt: str = ".4f"
     description: str = ""
 
-    def format(self, value: float | None) -> str:
-        """The value in the display unit, '-' where there is none (None or NaN)."""
+    def format(self, value: float | str | None) -> str:
+        """The value in the display unit, '-' where there is none (None, NaN or '')."""
+        if isinstance(value, str):  # a name (the hottest device)
+            return value or "-"
         if value is None or value != value:
             return "-"
         shown = value * self.scale
         return format(round(shown) if self.fmt.endswith("d") else shown, self.fmt)
 
-    def with_unit(self, value: float | None) -> str:
+    def with_unit(self, value: float | str | None) -> str:
         """:meth:`format` followed by the unit, or '-' alone where there is no value."""
         text = self.format(value)
         return f"{text} {self.unit}".rstrip() if text != "-" else text
