@@ -23,6 +23,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", sorted(str(p) for p in Path("config").glob("*.yaml"))),
+        (f"share/{PACKAGE}/config/devices", sorted(str(p) for p in Path("config/devices").glob("*.json"))),
         (f"share/{PACKAGE}/launch", ["launch/drive.launch.xml"]),
         (f"share/{PACKAGE}/layouts", ["layouts/drive.foxglove.json"]),
     ],

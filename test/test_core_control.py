@@ -23,7 +23,6 @@ from predictive_drive.core.machines.induction import (
     induction_rk4,
     induction_torque,
 )
-from predictive_drive.core.plant import PERIOD_MEANS
 from predictive_drive.core.signals import Reference, State
 
 pytestmark = pytest.mark.core
@@ -206,7 +205,8 @@ def test_unknown_strategy_lists_the_valid_ones():
 def _state(k, i=0j, w=0.0):
     sampled = (float(k), k * TS, i.real, i.imag, w, 0.0, 582.0, 0, 0, 0, 0, 0, 0)
     truth = (i.real, i.imag, w, 0.0)
-    return State(*sampled, *truth, *(0.0,) * len(PERIOD_MEANS))  # the controller reads no mean
+    rest = len(State._fields) - len(sampled) - len(truth)
+    return State(*sampled, *truth, *(0.0,) * rest)  # the controller reads no mean, no loss
 
 
 def test_soft_start_is_latched_off_once_flux_reaches_threshold(im_short):

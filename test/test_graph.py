@@ -771,6 +771,26 @@ def test_a_real_drive_through_the_graph_equals_inprocess(tmp_path):
     assert "actuation_delay_steps: 1" in info.info["scenario_yaml"]
 
 
+def test_losses_and_temperatures_through_the_graph_equal_inprocess(tmp_path):
+    """A drive with a device file, the machine's losses and temperatures (plant.losses): the
+    plant node reads the device file and books the same losses as the in-process engine, bit for
+    bit; the bag stores the file it read (docs/physics.md#losses-and-temperature)."""
+    settings = {
+        "plant.dead_time": 1e-6,
+        "plant.losses.device": "fuji_2mbi100xaa120_50",
+        "plant.losses.machine": True,
+        "plant.losses.iron_eddy": 0.01,
+    }
+    g = run("im_short", duration=0.05, settings=settings, out=tmp_path / "g")
+    i = run("im_short", duration=0.05, settings=settings, engine="inprocess", out=tmp_path / "i")
+    a, info = read_bag(g.bag)
+    b, _ = read_bag(i.bag)
+    assert info.complete and a.steps == b.steps == 1000
+    assert_same_run(a, b)
+    assert np.isfinite(a.col("state", "tj_ta_hi")).all() and a.col("state", "p_sw_t").any()
+    assert '"2MBI100XAA120-50"' in info.info["device_json"]
+
+
 def test_field_orientation_at_a_held_point_through_the_graph_equals_inprocess(tmp_path):
     """foc_im (field orientation of the induction motor) at a steady point — the shaft held by
     a load machine through a speed step, T* from a torque profile, the plant's period means on —

@@ -188,6 +188,16 @@ NOT_RUN = {
     "runs; a command of the measurement it names",
     "make run": "the README's (shortened here)",
     "make bench": "test_every_verb_runs_from_the_install (bench --quick)",
+    "predictive-drive bench --json --no-ros --no-horizons": "a benchmark: it prints figures, "
+    "asserts none; test_every_verb_runs_from_the_install runs bench --quick and reads its "
+    "losses row",
+    "predictive-drive report BAG --window 50,60": (
+        "test_a_thd_window_without_a_whole_cycle_is_a_note_and_report_takes_other_windows"
+    ),
+    "predictive-drive sweep ipmsm_drive_cycle --strategy mptc,simplified1,simplified2,simplified3 "
+    "--set plant.losses.machine=true,false --out DIR --record": "8 runs of the 60 s cycle, 21.5 "
+    "min here; test_the_drive_cycle_heats_the_plant_away_from_the_controllers_model runs a "
+    "tenth of a second of it",
     "predictive-drive bench --json --graph ros,ros_example_dtc --no-horizons": "a benchmark: "
     "it prints figures, asserts none (test_cli.py refuses its unknown keys)",
     "predictive-drive bench --graph ros,ros_example_dtc": "the command above, printed as text",

@@ -345,8 +345,9 @@ def test_field_orientation_takes_its_current_for_t_star_from_the_map(law):
     from predictive_drive.core.plant import PERIOD_MEANS
     from predictive_drive.core.signals import Reference, State
 
-    state = State(0.0, 0.0, 0.0, 0.0, 10.0, 0.0, 540.0, *(0.0,) * 6, 0.0, 0.0, 10.0, 0.0,
-                  *(0.0,) * len(PERIOD_MEANS))  # fmt: skip
+    given = (0.0, 0.0, 0.0, 0.0, 10.0, 0.0, 540.0, *(0.0,) * 6, 0.0, 0.0, 10.0, 0.0,
+             *(0.0,) * len(PERIOD_MEANS))  # fmt: skip
+    state = State(*given, *(math.nan,) * (len(State._fields) - len(given)))  # the rest: NaN
     ref = Reference(0, 0, 29.7, 0.94, 10.0)
     fm = magnetic_model(PMSYRM_MOTOR, PMSYRM).flux_map
     mapped = FOCController(FOCParams(PMSYRM_MOTOR, law, saturation=PMSYRM), ts=1e-4)
@@ -383,3 +384,15 @@ _PMSYRM_SETTINGS = {
     "t": 6.0, "a_dq": 41.5, "u": 1.0, "v": 1.0, "psi_n": 0.804, "a_b": 81.75, "a_bp": 1.0,
     "w": 2.0, "k_q": 0.1, "max_current": 25.0,
 }  # fmt: skip
+
+
+def test_losses_on_a_saturating_machine_are_refused_before_the_run():
+    """The loss ledger needs the machine's temperature model and flux hooks, which only the
+    linear machines have: the combination is refused naming both keys, not a traceback."""
+    from predictive_drive.api.run import run
+    from predictive_drive.errors import ConfigError
+
+    for key, value in (("plant.losses.device", "wolfspeed_c3m0060065j"),
+                       ("plant.losses.machine", True)):  # fmt: skip
+        with pytest.raises(ConfigError, match="plant.losses with plant.saturation"):
+            run("pmsyrm_short", engine="inprocess", duration=0.001, settings={key: value})

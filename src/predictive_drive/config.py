@@ -20,6 +20,8 @@ import yaml
 
 from .core.control import CONTROLLERS, controller_class
 from .core.control.speed_pi import SpeedPIParams
+from .core.devices import Device, load_device, parse_device
+from .core.losses import LossParams
 from .core.machines import Machine, motor_class, saturation_class
 from .core.scenario import LoggerParams, PlantParams, RunParams, Scenario
 from .core.signals import EXTERNAL_PREFIX
@@ -35,6 +37,8 @@ __all__ = [
     "RclLoader",
     "build_section",
     "config_dir",
+    "device_names",
+    "device_of",
     "family_of",
     "load_scenario",
     "load_scenario_text",
@@ -140,6 +144,41 @@ def scenario_names() -> list[str]:
     return sorted(p.stem for p in config_dir().glob("*.yaml"))
 
 
+def device_names() -> list[str]:
+    """The device files of the scenario folder's ``devices/`` (their names)."""
+    return sorted(p.stem for p in (config_dir() / "devices").glob("*.json"))
+
+
+def device_of(plant: PlantParams, where: str | Path, *, text: str | None = None) -> Device | None:
+    """The devices ``plant.losses.device`` names — a file of the scenario folder's ``devices/``
+    by its name, or a path — read and checked against the DC link (None where it names none).
+    ``text``: the file's text as a recording stored it, read instead. ConfigError names the
+    key, the file and the field."""
+    name = plant.losses.device
+    if not name:
+        return None
+    key = f"{where}: /drive/plant.losses.device"
+    if text is not None:
+        device = parse_device(text, f"{name} (stored)")
+    else:
+        p = Path(name)
+        if p.suffix != ".json" and "/" not in name:
+            p = config_dir() / "devices" / f"{name}.json"
+            if not p.is_file():
+                raise ConfigError(
+                    f"{key}: no device {name!r}; available: {', '.join(device_names())} (or "
+                    f"give a path to a .json device file)"
+                )
+        elif not p.is_file():
+            raise ConfigError(f"{key}: no device file {p}")
+        try:
+            device = load_device(p)
+        except ConfigError as e:
+            raise ConfigError(f"{key}: {e}") from None
+    device.check_voltage(plant.u_dc, key)
+    return device
+
+
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """The file of a scenario given by name (``im_paper``: the scenario folder's
     ``im_paper.yaml``) or by path (with a .yaml suffix, a folder in it, or a file that exists). A
@@ -191,7 +230,11 @@ def section_class(
     fixed: dict[str, tuple[type, dict[str, type]]] = {
         "plant": (
             PlantParams,
-            {"motor": motor_class(machine), "saturation": saturation_class(machine)},
+            {
+                "motor": motor_class(machine),
+                "saturation": saturation_class(machine),
+                "losses": LossParams,
+            },
         ),
         "speed_pi": (SpeedPIParams, {}),
         "metrics_logger": (LoggerParams, {}),
@@ -370,6 +413,7 @@ def load_scenario_text(
     legacy: bool = False,
     own: Collection[str] = (),
     strategy: str | None = None,
+    device_text: str | None = None,
 ) -> Scenario:
     """Validate scenario text; ``path`` names it in errors (a file, or a bag it was stored in).
     ``strategy``: the strategy the run starts with, in place of the file's, before the
@@ -379,7 +423,8 @@ def load_scenario_text(
     node as they are and not checked; the scenario holds the built-in settings only where the
     section happens to be a valid one (else None), and a torque controller of one's own is
     named as its family's where the section names one of this machine (else the machine's
-    first)."""
+    first). The devices ``plant.losses.device`` names are read (``device_text``: from that text,
+    as a recording stored it)."""
     unknown_own = sorted(set(own) - set(OWN_NODES))
     if unknown_own:
         raise ConfigError(
@@ -429,6 +474,7 @@ def load_scenario_text(
             built[node] = build_section(cls, params, nested, f"{path}: {key}")
         except ConfigError:
             built[node] = None
+    device = device_of(built["plant"], path, text=device_text)
     try:
         sc = Scenario(
             run,
@@ -441,6 +487,7 @@ def load_scenario_text(
             text=text,
             external="torque_controller" in own,
             own=frozenset(own),
+            device=device,
         )
     except ConfigError as e:  # its messages name the section and key
         raise ConfigError(f"{path}: {e}") from None
@@ -533,7 +580,7 @@ def apply_settings(
             family = params.get(FAMILY_KEY) if node == "torque_controller" else None
             meant = [k for k in _setting_keys(doc, where) if k.rsplit(".", 1)[-1] == leaf]
             raise ConfigError(
-                f"setting {key!r}: {section} has no key {leaf!r} here"
+                f"setting {key!r}: {'.'.join([section, *path[:-1]])} has no key {leaf!r} here"
                 + (f"; did you mean {' or '.join(meant)}?" if meant else "")
                 + f" (keys there: {', '.join(sorted(set(params) | optional))})"
                 + _family_hint(leaf, family)
@@ -565,7 +612,9 @@ def _setting_keys(doc: dict[str, Any], where: str | Path) -> list[str]:
     for node in NODES:
         if f"{NAMESPACE}/{node}" in doc:
             keys += walk(_params(doc, f"{NAMESPACE}/{node}", where), f"{node}.")
-            keys += [f"{node}.{k}" for k in sorted(_defaulted(doc, node, where))]
+            for k in sorted(_defaulted(doc, node, where)):
+                group = _defaulted(doc, node, where, (k,))
+                keys += [f"{node}.{k}.{g}" for g in sorted(group)] or [f"{node}.{k}"]
     return list(dict.fromkeys(keys))
 
 

@@ -129,6 +129,8 @@ def bag_info(
         "strategy_names": list(strategy_names(sc.family)),
         # a controller of the user's own: the command contract it was held to
         **({"command_contract": str(COMMAND_CONTRACT)} if sc.external else {}),
+        # the inverter's devices (plant.losses.device): their file, as the run read it
+        **({"device_json": sc.device.text} if sc.device is not None else {}),
         **({"external": json.dumps(own)} if own else {}),
         **({"label": label} if label else {}),
         **({"draw": sc.draw} if sc.draw else {}),  # a drawn drive (sweep --draw, robustness)
@@ -157,7 +159,10 @@ def scenario_of(info: Mapping[str, str], where: Path) -> Scenario:
     own = [n.name for n in own_nodes(info)]
     where_ = f"{where} (stored scenario)"
     first = info["strategy"] if "torque_controller" not in own else None
-    sc = load_scenario_text(info["scenario_yaml"], where_, legacy=True, own=own, strategy=first)
+    sc = load_scenario_text(
+        info["scenario_yaml"], where_, legacy=True, own=own, strategy=first,
+        device_text=info.get("device_json"),
+    )  # fmt: skip
     return sc.with_strategy(info["strategy"]).with_duration(float(info["duration"]))
 
 

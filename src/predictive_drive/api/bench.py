@@ -16,7 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from ..config import load_scenario, scenario_with
+from ..config import (
+    apply_settings,
+    load_scenario,
+    load_scenario_text,
+    resolve_scenario_path,
+    scenario_with,
+)
 from ..core.control import strategy_names
 from ..core.metrics import compute_metrics
 from ..core.runner import run_inprocess
@@ -33,6 +39,8 @@ __all__ = [
     "GraphRate",
     "GraphRun",
     "HorizonRate",
+    "LOSS_DRIVE",
+    "LossRate",
     "bench",
     "graph_rate",
     "graph_runs",
@@ -206,6 +214,56 @@ def horizon_rate(
     )  # fmt: skip
 
 
+#: the real drive a loss row times (im_paper, db_mptc): its dead time and device drops, and
+#: the same drive with its devices' losses and temperatures and the machine's instead of the
+#: constant drop (docs/physics.md#losses-and-temperature)
+LOSS_DRIVE: dict[str, Any] = {"plant.dead_time": 2e-6, "plant.device_drop": 1.5}
+LOSSES_ON: dict[str, Any] = {
+    "plant.dead_time": 2e-6,
+    "plant.losses.device": "fuji_2mbi100xaa120_50",
+    "plant.losses.machine": True,
+    "plant.losses.iron_hysteresis": 1.0,
+    "plant.losses.iron_eddy": 0.01,
+}
+
+
+@dataclass(frozen=True)
+class LossRate:
+    """Losses and temperatures on against off, in one call: steps/s of the in-process loop of a
+    real drive (dead time, device drops: ``real``) and of the same drive with losses and
+    temperatures booked (``losses``), each the median of interleaved repeats; ``of_real``: the
+    median of each losses run over the real-drive run right before it; ``of_core``: the losses
+    runs' median over the call's core loop (the ideal drive, which takes no segment of a real
+    inverter)."""
+
+    steps: int
+    real_steps_per_s: float
+    losses_steps_per_s: float
+    of_real: float
+    of_core: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def loss_rate(steps: int, repeats: int, core: float) -> LossRate:
+    """:class:`LossRate` on im_paper with db_mptc (see :data:`LOSS_DRIVE`)."""
+    path = resolve_scenario_path("im_paper")
+    text = path.read_text(encoding="utf-8")
+    real, on = (
+        load_scenario_text(apply_settings(text, s, path), path).with_strategy("db_mptc")
+        for s in (LOSS_DRIVE, LOSSES_ON)
+    )
+    pairs = [(_core_rate(real, steps), _core_rate(on, steps)) for _ in range(repeats)]
+    return LossRate(
+        steps,
+        _median([a for a, _ in pairs]),
+        _median([b for _, b in pairs]),
+        _median([b / a for a, b in pairs]),
+        _median([b for _, b in pairs]) / core,
+    )
+
+
 def _core_rate(sc: Any, steps: int) -> float:
     """Steps/s of the core loop in one run of ``steps``."""
     t0 = time.perf_counter()
@@ -237,6 +295,7 @@ class Bench:
     real_time_steps_per_s: float
     graph: list[GraphRate]
     horizons: list[HorizonRate]
+    losses: LossRate | None = None
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -250,6 +309,7 @@ class Bench:
             "inprocess_recorded_of_core": self.inprocess_recorded_of_core,
             "report_x_core": self.report_x_core,
             "horizons": [h.as_dict() for h in self.horizons],
+            "losses": None if self.losses is None else self.losses.as_dict(),
         }
         for g in self.graph:
             out[g.run.key] = g.steps_per_s
@@ -297,11 +357,13 @@ def bench(
     horizon_steps: int = 4000,
     external: str | None = None,
     label: str | None = None,
+    losses: bool = True,
 ) -> Bench:
     """Throughput figures (printed by ``predictive-drive bench``; never asserted in tests).
     ``quick``: one repeat of 2,000 steps, horizons over 200 and 0.3 s graph runs of the
     default engines; ``graph``: only these graph runs (see :func:`graph_runs`). ``horizons``:
-    time the long-horizon laws (:data:`HORIZON_RUNS`) over ``horizon_steps`` each.
+    time the long-horizon laws (:data:`HORIZON_RUNS`) over ``horizon_steps`` each; ``losses``:
+    time losses and temperatures on against off (:class:`LossRate`).
     ``external``: the command of a torque controller of the user's own, timed in the graph
     beside ours (the ``ros`` run, and only it unless ``graph`` says more), its figure keyed
     ``ros_external_LABEL``."""
@@ -374,6 +436,7 @@ def bench(
                         h, core_near_steps_per_s=near, of_core_near=h.steps_per_s / near
                     )
                 )
+    loss_row = loss_rate(steps, repeats, _median(rates)) if losses else None
     return Bench(
         steps=steps,
         core_steps_per_s=_median(rates),
@@ -386,4 +449,5 @@ def bench(
         real_time_steps_per_s=1.0 / sc.ts,
         graph=measured,
         horizons=rows,
+        losses=loss_row,
     )

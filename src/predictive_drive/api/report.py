@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.analysis import LoadStep, load_steps
+from ..core.losses import Overheat, overheats
 from ..core.machines import Machine
 from ..core.metrics import Metrics, compute_metrics
 from ..core.scenario import Scenario
@@ -174,6 +175,11 @@ class RecordingDetails:
     #: a replay into a controller (``replay --into``): the recording whose states it was fed
     #: ('' for a run). Its plant's figures are that recording's; its commands are the node's
     replay_of: str = ""
+    #: the inverter's devices (their part name; '' without losses) and each device whose
+    #: junction went above its rated temperature (docs/physics.md#losses-and-temperature)
+    device: str = ""
+    rated_tj: tuple[float, float] = (math.nan, math.nan)  #: transistor's, diode's, °C
+    overheats: list[Overheat] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -183,6 +189,10 @@ class RecordingDetails:
             "own_nodes": [dataclasses.asdict(n) for n in self.own_nodes],
             "replay_of": self.replay_of,
         }
+        if self.device:
+            out["device"] = self.device
+            out["rated_tj"] = list(self.rated_tj)
+            out["overheats"] = [dataclasses.asdict(o) for o in self.overheats]
         if self.load_steps:
             out["load_steps"] = [
                 {**dataclasses.asdict(st), "theta_deg": math.degrees(st.theta)}
@@ -206,6 +216,9 @@ def details_of(ev: Evaluation) -> RecordingDetails:
         load_steps=steps_of(ev),
         own_nodes=ev.info.own_nodes,
         replay_of=ev.info.info.get("replay_of", ""),
+        device="" if (d := ev.scenario.device) is None else d.name,
+        rated_tj=(math.nan, math.nan) if d is None else (d.switch.t_j_max, d.diode.t_j_max),
+        overheats=overheats(ev.trace, d),
     )
 
 

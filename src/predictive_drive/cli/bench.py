@@ -19,6 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-horizons", action="store_true", help="skip the long-horizon laws (mptc, direct_mpc)"
     )
+    p.add_argument("--no-losses", action="store_true", help="skip the losses-and-temperatures row")
     p.add_argument(
         "--quick", action="store_true", help="short runs: a smoke test, not a measurement"
     )
@@ -60,6 +61,7 @@ def main(a: argparse.Namespace) -> int:
         horizons=not a.no_horizons,
         external=command or None,
         label=a.label,
+        losses=not a.no_losses,
     )
     if a.json:
         return say_json(d)
@@ -93,6 +95,13 @@ def main(a: argparse.Namespace) -> int:
                 f"run right before and after it; slope over 20-90 % of one run, start-up "
                 f"{g.startup_s:.1f} s excluded)"
             )
+    if (lr := d.losses) is not None:
+        print(
+            f"losses and temperatures (im_paper, db_mptc, 2 µs dead time, {lr.steps} steps): "
+            f"{lr.losses_steps_per_s:,.0f} steps/s against {lr.real_steps_per_s:,.0f} with "
+            f"constant device drops: {lr.of_real:.2f} of it (each run against the drops run "
+            f"before it, the median); {lr.of_core:.2f} of the ideal core loop"
+        )
     for name, us in d.compute_us_per_step.items():
         print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")
     for h in d.horizons:

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
 __all__ = [
     "dumps",
     "given",
+    "print_losses",
     "print_recording",
     "progress",
     "refuse",
@@ -220,6 +221,7 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m.utilization))
         print(f"  {'vectors':<{w}}{util}   {METRICS['utilization'].description}")
     d = r.details
+    print_losses(m, d)
     if len(d.strategies) > 1:
         for sp in d.strategies:
             print(
@@ -253,6 +255,41 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         )
     if r.window_note:
         print(f"  note: {r.window_note}")
+
+
+def print_losses(m: Metrics, d: RecordingDetails) -> None:
+    """The losses, the efficiency and the hottest junction of a run with losses on (nothing for
+    one without): the metrics window's means."""
+    from ..core.metrics import METRICS
+
+    if not math.isfinite(m.p_in):
+        return
+
+    def w(key: str) -> str:
+        return METRICS[key].with_unit(getattr(m, key))
+
+    rows = [
+        ("P_cond", f"T {w('p_cond_t')}  D {w('p_cond_d')}",
+         "conduction, six transistors / six diodes"),
+        ("P_sw", f"T {w('p_sw_t')}  D {w('p_sw_d')}", "switching: E_on + E_off / E_rr"),
+        ("inverter", w("p_inverter"), "its losses, conduction + switching"),
+        ("machine", w("p_machine"),
+         f"copper {w('p_copper')}, iron {w('p_iron')}, friction {w('p_friction')}"),
+        ("eta", w("efficiency"), f"{w('p_out')} into the load of {w('p_in')} from the DC link"),
+    ]  # fmt: skip
+    if m.tj_max_device:
+        rated = d.rated_tj[0 if m.tj_max_device.startswith("t") else 1]
+        rows.append(("T_j max", w("tj_max"),
+                     f"{m.tj_max_device} at {m.tj_max_t:.4g} s (rated {rated:g} °C)"))  # fmt: skip
+    if math.isfinite(m.t_winding_max):
+        rows.append(("T_winding", w("t_winding_max"), "the winding's hottest"))
+    for title, value, what in rows:
+        print(f"  {title:<11}{value:>16}   {what}")
+    for o in d.overheats:
+        print(
+            f"  {'OVER T_j':<11}{o.device:>16}   above its rated {o.rated:g} °C from "
+            f"{o.t_first:.4g} s, up to {o.tj_max:.1f} °C at {o.t_max:.4g} s"
+        )
 
 
 def single_settings(texts: list[str] | None) -> dict[str, Any]:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .signals import COMMAND_INDEX, REFERENCE_INDEX, STATE_INDEX, strategy_name
+from .signals import COMMAND_INDEX, DEVICES, REFERENCE_INDEX, STATE_INDEX, strategy_name
 from .timebase import every_steps, step_index
 from .trace import Trace
 
@@ -28,6 +28,7 @@ __all__ = [
     "continuous_current_thd",
     "continuous_ripple",
     "continuous_rmse",
+    "loss_figures",
     "whole_cycles",
     "Metric",
     "Metrics",
@@ -54,14 +55,16 @@ class Metric:
     fmt: str = ".4f"
     description: str = ""
 
-    def format(self, value: float | None) -> str:
-        """The value in the display unit, '-' where there is none (None or NaN)."""
+    def format(self, value: float | str | None) -> str:
+        """The value in the display unit, '-' where there is none (None, NaN or '')."""
+        if isinstance(value, str):  # a name (the hottest device)
+            return value or "-"
         if value is None or value != value:
             return "-"
         shown = value * self.scale
         return format(round(shown) if self.fmt.endswith("d") else shown, self.fmt)
 
-    def with_unit(self, value: float | None) -> str:
+    def with_unit(self, value: float | str | None) -> str:
         """:meth:`format` followed by the unit, or '-' alone where there is no value."""
         text = self.format(value)
         return f"{text} {self.unit}".rstrip() if text != "-" else text
@@ -182,6 +185,60 @@ class Metrics:
         description="current distortion over whole cycles of the THD window, continuous time, "
         "all three phases, over the fundamental",
     )  # fmt: skip
+
+    # -- losses and temperatures (docs/physics.md#losses-and-temperature): means over the window
+    # of the plant's loss fields, NaN for a run without them ----------------------------------
+    p_cond_t: float = metric(
+        "P_cond T", "W", fmt=".3g", default=math.nan,
+        description="conduction losses of the six transistors",
+    )  # fmt: skip
+    p_cond_d: float = metric(
+        "P_cond D", "W", fmt=".3g", default=math.nan,
+        description="conduction losses of the six diodes",
+    )  # fmt: skip
+    p_sw_t: float = metric(
+        "P_sw T", "W", fmt=".3g", default=math.nan,
+        description="switching losses of the six transistors (E_on + E_off)",
+    )  # fmt: skip
+    p_sw_d: float = metric(
+        "P_sw D", "W", fmt=".3g", default=math.nan,
+        description="switching losses of the six diodes (E_rr)",
+    )  # fmt: skip
+    p_inverter: float = metric(
+        "P_inverter", "W", fmt=".3g", default=math.nan,
+        description="the inverter's losses: conduction and switching",
+    )  # fmt: skip
+    p_copper: float = metric("P_copper", "W", fmt=".3g", default=math.nan,
+                             description="the machine's copper losses, R(T)·i²")  # fmt: skip
+    p_iron: float = metric("P_iron", "W", fmt=".3g", default=math.nan,
+                           description="the machine's iron losses")  # fmt: skip
+    p_friction: float = metric("P_friction", "W", fmt=".3g", default=math.nan,
+                               description="the machine's friction losses")  # fmt: skip
+    p_machine: float = metric(
+        "P_machine", "W", fmt=".3g", default=math.nan,
+        description="the machine's losses: copper, iron and friction",
+    )  # fmt: skip
+    p_in: float = metric(
+        "P_in", "W", fmt=".4g", default=math.nan,
+        description="from the DC link: u_dc·i_dc of the plant's equations + switching + iron",
+    )  # fmt: skip
+    p_out: float = metric("P_out", "W", fmt=".4g", default=math.nan,
+                          description="into the load")  # fmt: skip
+    efficiency: float = metric(
+        "eta", "%", scale=100.0, fmt=".2f", default=math.nan,
+        description="energy into the load / from the DC link over the window (generating: the "
+        "other way round; NaN where they flow opposite ways)",
+    )  # fmt: skip
+    tj_max: float = metric(
+        "T_j max", "°C", fmt=".1f", default=math.nan,
+        description="the hottest junction in the window",
+    )  # fmt: skip
+    tj_max_t: float = metric("T_j max at", "s", fmt=".4g", default=math.nan,
+                             description="when the hottest junction was hottest")  # fmt: skip
+    #: which device was hottest (:data:`~.signals.DEVICES`; '' without junction temperatures)
+    tj_max_device: str = metric("T_j max in", default="")
+    t_winding_max: float = metric("T_winding max", "°C", fmt=".1f", default=math.nan,
+                                  description="the winding's hottest in the window")  # fmt: skip
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -430,6 +487,7 @@ def compute_metrics(
         t_ripple_cont=continuous_ripple(trace, "torque", k0, k1),
         psi_rmse_cont=continuous_rmse(trace, "flux", "flux_ref", k0, k1),
     )
+    m = dataclasses.replace(m, **loss_figures(trace, k0, k1))
     if not thd_window:
         return m
     sp = phase_a_spectrum(trace, thd_window[0], thd_window[1], slips=slips)
@@ -443,6 +501,40 @@ def compute_metrics(
             trace, whole_cycles(trace, thd_window[0], thd_window[1], slips=slips)
         ),
     )
+
+
+def loss_figures(trace: Trace, k0: int, k1: int) -> dict[str, Any]:
+    """The losses and temperatures of periods k0..k1-1 (the state's loss fields; state k+1
+    holds period k's powers): their means, the efficiency from the energies, the hottest
+    junction and winding; {} for a run without them."""
+    p_dc = trace.col("state", "p_dc")[k0 + 1 : k1 + 1]
+    if not np.isfinite(p_dc).any():
+        return {}
+
+    def mean(field: str) -> float:
+        return float(np.mean(trace.col("state", field)[k0 + 1 : k1 + 1]))
+
+    out: dict[str, Any] = {f: mean(f) for f in ("p_cond_t", "p_cond_d", "p_sw_t", "p_sw_d",
+                                                "p_copper", "p_iron", "p_friction")}  # fmt: skip
+    out["p_inverter"] = out["p_cond_t"] + out["p_cond_d"] + out["p_sw_t"] + out["p_sw_d"]
+    out["p_machine"] = out["p_copper"] + out["p_iron"] + out["p_friction"]
+    p_in = float(np.mean(p_dc)) + out["p_sw_t"] + out["p_sw_d"] + out["p_iron"]
+    p_out = mean("p_shaft")
+    out["p_in"], out["p_out"] = p_in, p_out
+    if p_in > 0.0 and p_out > 0.0:
+        out["efficiency"] = p_out / p_in
+    elif p_in < 0.0 and p_out < 0.0:
+        out["efficiency"] = p_in / p_out
+    tj = np.column_stack([trace.col("state", f"tj_{d}")[k0:k1] for d in DEVICES])
+    if np.isfinite(tj).any():
+        k, d = np.unravel_index(int(np.nanargmax(tj)), tj.shape)
+        out["tj_max"] = float(tj[k, d])
+        out["tj_max_t"] = (k0 + int(k)) * trace.ts
+        out["tj_max_device"] = DEVICES[int(d)]
+    winding = trace.col("state", "t_winding")[k0:k1]
+    if np.isfinite(winding).any():
+        out["t_winding_max"] = float(np.nanmax(winding))
+    return out
 
 
 class _Sums:

@@ -11,6 +11,10 @@ hold every phase low); dead time and device drops split the period further, at e
 edge, into segments whose leg voltages follow the phase currents' signs; and ``sensors`` turn the
 true currents and position into what the controller measures (the truth published beside).
 
+With ``losses`` (:mod:`.losses`) the plant books each device's losses, the machine's, and the
+temperatures they lead to; the devices' on-state voltages are then the drops of its equations
+(one model of a conducting device), and its R_s, R_r, ψ_f follow the machine's temperatures.
+
 With ``period_means`` the state also carries what happened between the samples: the means of the
 torque, the flux magnitude and the current over the period that ended at k, and of their squares
 (:data:`PERIOD_MEANS`; NaN without it). They are integrated over every sub-step of every segment
@@ -26,12 +30,15 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from .devices import Device
 from .inverter import clarke, inverse_clarke, segments
+from .losses import LOSS_NAN, Ledger, LossParams
 from .machines import Machine
 from .machines.induction import IM_STATE, InductionCoefficients, InductionMotor, induction_exact
 from .machines.pmsm import PMSM, PMSM_STATE, PMSMCoefficients, pmsm_rk4
 from .sensors import Sensors
 from .signals import COMMAND_INDEX, PULSES, PhasePulses, State, new_record
+from .thermal import COPPER_ALPHA, resistance_at
 from .timebase import StepProfile
 
 __all__ = [
@@ -51,6 +58,8 @@ ALL_LOW = PhasePulses(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _K = COMMAND_INDEX.k
 _IM_I, _IM_PSI, _IM_W, _IM_TH = IM_STATE.i_s, IM_STATE.psi_s, IM_STATE.omega_m, IM_STATE.theta_m
 _PM_I, _PM_W, _PM_TH = PMSM_STATE.i_dq, PMSM_STATE.omega_m, PMSM_STATE.theta_m
+#: a device's place in its leg (:data:`~.signals.DEVICES`): upper transistor and diode, lower
+_T_HI, _D_HI, _T_LO, _D_LO = range(4)
 #: the state's fields that are means over the period that ended at k, in the order
 #: :meth:`InverterPlant._means` gives them
 PERIOD_MEANS = (
@@ -109,6 +118,7 @@ class InverterPlant:
     coefficients: Any  #: class with ``of(motor)``: the machine's precomputed constants
     x0: tuple[Any, ...]  #: initial state
     speed_index: int  #: where ω_m is in the state
+    angle_index: int  #: where θ_m is in the state
     default_integrator: Callable[..., tuple[Any, ...]]
 
     def __init__(
@@ -127,17 +137,18 @@ class InverterPlant:
         period_means: bool = False,
         held_speed: StepProfile | None = None,
         u_dc_gain: float = 1.0,
+        losses: LossParams | None = None,
+        device: Device | None = None,
     ) -> None:
         self.motor = motor
         self.ts = ts
         self.u_dc = u_dc
         self._u_dc_seen = u_dc * u_dc_gain  #: the DC link as measured (a sensor's gain error)
-        self._coef = self.coefficients.of(motor)
         x0 = self.x0
         #: the speed a load machine holds (rad/s), by step; None: a free shaft
         self._held = None if held_speed is None else held_speed.sampled(ts)
-        if self._held is not None:  # no torque moves the shaft: it turns as it is held
-            self._coef = self._coef._replace(inv_j=0.0, b=0.0)
+        self._coef = self._coefficients(motor)
+        if self._held is not None:
             x0 = self._with_speed(x0, self._held.at(0))
         self._load = load.sampled(ts)
         self._max_substep = max_substep
@@ -153,8 +164,21 @@ class InverterPlant:
             deque([ALL_LOW] * actuation_delay_steps) if actuation_delay_steps else None
         )
         self._dead = dead_time / ts  #: dead time as a share of Ts
-        self._drop = device_drop
-        self._real_inverter = dead_time > 0.0 or device_drop > 0.0
+        #: the losses booked (None: none); with them every period takes the real inverter's path
+        self._ledger: Ledger | None = None
+        self._ledger_params = losses or LossParams()
+        if losses is not None and losses.on:
+            self._ledger = Ledger(
+                losses, device, ts=ts, u_dc=u_dc, drop=device_drop, heat=self._heat,
+                rotor=self._rotor(), torque=None if self._held is None else self._torque,
+            )  # fmt: skip
+        #: each device's on-state voltage v0 + r·|i| (V, Ω; per :data:`~.signals.DEVICES`), and
+        #: whether a transistor conducts reverse current while on (a MOSFET's channel)
+        on = self._ledger
+        self._v0 = on.v0 if on is not None else [device_drop] * 12
+        self._r = on.r if on is not None else [0.0] * 12
+        self._reverse = on is not None and on.reverse
+        self._real_inverter = dead_time > 0.0 or device_drop > 0.0 or on is not None
         self._carry = [0.0, 0.0, 0.0]  #: dead time of each leg running on into this period
         self.sensors = sensors
         #: the period means the state publishes (:data:`PERIOD_MEANS`): NaN unless
@@ -171,6 +195,30 @@ class InverterPlant:
 
     def _point(self, x: tuple[Any, ...]) -> Point:
         """The :data:`Point` of state ``x``: what the period means are taken of."""
+        raise NotImplementedError
+
+    def _coefficients(self, motor: Any) -> Any:
+        """The coefficients of ``motor`` as this plant integrates them: a shaft a load machine
+        holds is turned by no torque and loses nothing to friction in the equations."""
+        c = self.coefficients.of(motor)
+        return c if self._held is None else c._replace(inv_j=0.0, b=0.0)
+
+    def _heat(self, t_winding: float, t_rotor: float) -> tuple[float, float]:
+        """The machine at these temperatures (°C): its coefficients follow (R_s, R_r, ψ_f);
+        returns (R_s, R_r) in Ω."""
+        raise NotImplementedError
+
+    def _rotor(self) -> tuple[int, int, float, float] | None:
+        """Where a machine with rotor copper (an induction motor) holds ψ_s and i_s in its
+        state, and L_s, 1/L_m: its rotor current (ψ_s - L_s·i_s)/L_m; None for a PMSM."""
+        return None
+
+    def _torque(self, x: tuple[Any, ...]) -> float:
+        """The torque of state ``x``, N·m."""
+        return self._point(x)[0]
+
+    def _flux_ab(self, x: tuple[Any, ...]) -> complex:
+        """The stator flux linkage in αβ of state ``x`` (Wb)."""
         raise NotImplementedError
 
     def _with_speed(self, x: tuple[Any, ...], omega_m: float) -> tuple[Any, ...]:
@@ -284,6 +332,7 @@ class InverterPlant:
                 w,
                 the,
                 *self._avg,
+                *(LOSS_NAN if self._ledger is None else self._ledger.fields),
             ),
         )
 
@@ -323,8 +372,9 @@ class InverterPlant:
         """One period through an inverter with dead time and device drops: during the dead time
         after each edge of a leg both its devices are off and the leg follows its current's sign
         (low while the current flows out of it, high while it flows in); every conducting device
-        drops ``device_drop`` against the current. The signs are the currents' at the start of
-        each segment."""
+        drops its on-state voltage against the current (``device_drop``, or its device's line
+        v0 + r·|i| at its T_j). The signs and the currents are those at each segment's start;
+        with losses each segment goes into the ledger."""
         ra, rb, rc, da, db, dc = pulses
         rises, falls, duties = (ra, rb, rc), (ra + da, rb + db, rc + dc), (da, db, dc)
         before = self.switches
@@ -349,28 +399,60 @@ class InverterPlant:
             cuts.update(b for _, b in spans if b < 1.0)
         if self._means:
             self._open_period()
-        ts, u_dc, drop = self.ts, self.u_dc, self._drop
+        ts, u_dc = self.ts, self.u_dc
+        v0, slope, reverse = self._v0, self._r, self._reverse
+        ledger = self._ledger
+        trail: list[tuple[Any, ...]] = []  # the segments, for the ledger
         load = self.load
-        x = self.x
+        x = x_start = self.x
         points = sorted(cuts)
         for t0, t1 in zip(points, points[1:]):
             mid = 0.5 * (t0 + t1)
-            currents = inverse_clarke(self._i_ab(x))
+            i_ab = self._i_ab(x)
+            currents = inverse_clarke(i_ab)
             legs = []
+            highs = []
+            devs = []
+            drops = []
             for leg in range(3):
                 cur = currents[leg]
                 if any(a <= mid < b for a, b in windows[leg]):
                     high = cur < 0.0  # both devices off: a diode carries the current
+                    dev = 4 * leg + (_D_HI if high else _D_LO)
+                elif rises[leg] <= mid < falls[leg]:
+                    high = True
+                    dev = 4 * leg + (_T_HI if cur > 0.0 or reverse else _D_HI)
                 else:
-                    high = rises[leg] <= mid < falls[leg]
+                    high = False
+                    dev = 4 * leg + (_T_LO if cur < 0.0 or reverse else _D_LO)
                 sign = (cur > 0.0) - (cur < 0.0)
-                legs.append(u_dc * high - sign * drop)
+                drop = sign * (v0[dev] + slope[dev] * abs(cur))  # the device's, against i
+                legs.append(u_dc * high - drop)
+                highs.append(high)
+                devs.append(dev)
+                drops.append(drop)
+            if ledger is not None:
+                trail.append(((t1 - t0) * ts, x, i_ab, currents, highs, devs, drops))
             x = self._advance(x, (clarke(*legs), load), (t1 - t0) * ts)
         self.x = x
         if self._means:
             self._close_period()
+        if ledger is not None:
+            self._close_ledger(ledger, trail, x_start, x)
         self._next_period()
         return self.state()
+
+    def _close_ledger(
+        self, ledger: Ledger, trail: list[tuple[Any, ...]], x0: tuple[Any, ...], x: tuple[Any, ...]
+    ) -> None:
+        """The period from state ``x0`` to ``x`` in the segments ``trail`` ends: into the
+        ledger (its losses, temperatures, fields)."""
+        i_ab = self._i_ab(x)
+        w, th = self.speed_index, self.angle_index
+        ledger.close(
+            trail, x, i_ab, inverse_clarke(i_ab), self._flux_ab(x), (x0[w], x[w]),
+            x[th] - x0[th], self.load, self._coef.b,
+        )  # fmt: skip
 
 
 class InductionPlant(InverterPlant):
@@ -381,7 +463,24 @@ class InductionPlant(InverterPlant):
     coefficients = InductionCoefficients
     x0 = (0j, 0j, 0.0, 0.0)
     speed_index = _IM_W
+    angle_index = _IM_TH
     default_integrator = staticmethod(induction_exact)
+
+    def _heat(self, t_winding: float, t_rotor: float) -> tuple[float, float]:
+        m, p = self.motor, self._ledger_params
+        t_ref = p.motor_temperature
+        r_s = resistance_at(m.r_s, t_winding, t_ref, COPPER_ALPHA)
+        r_r = resistance_at(m.r_r, t_rotor, t_ref, p.cage_alpha)
+        self._coef = self._coefficients(_Hot(vars(m), sigma=m.sigma, r_s=r_s, r_r=r_r))
+        return r_s, r_r
+
+    def _rotor(self) -> tuple[int, int, float, float] | None:
+        m = self.motor  # L_s, L_m do not follow temperature
+        return _IM_PSI, _IM_I, m.l_s, 1.0 / m.l_m
+
+    def _flux_ab(self, x: tuple[Any, ...]) -> complex:
+        psi: complex = x[_IM_PSI]
+        return psi
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
         i: complex = x[_IM_I]
@@ -411,7 +510,21 @@ class PMSMPlant(InverterPlant):
     coefficients = PMSMCoefficients
     x0 = (0j, 0.0, 0.0)
     speed_index = _PM_W
+    angle_index = _PM_TH
     default_integrator = staticmethod(pmsm_rk4)
+
+    def _heat(self, t_winding: float, t_rotor: float) -> tuple[float, float]:
+        m, p = self.motor, self._ledger_params
+        t_ref = p.motor_temperature
+        r_s = resistance_at(m.r_s, t_winding, t_ref, COPPER_ALPHA)
+        psi_f = resistance_at(m.psi_f, t_rotor, t_ref, p.magnet_alpha)
+        self._coef = self._coefficients(_Hot(vars(m), r_s=r_s, psi_f=psi_f))
+        return r_s, 0.0
+
+    def _flux_ab(self, x: tuple[Any, ...]) -> complex:
+        c, i_dq, the = self._coef, x[_PM_I], self._coef.p * x[_PM_TH]
+        psi_dq = complex(c.l_d * i_dq.real + c.psi_f, c.l_q * i_dq.imag)
+        return psi_dq * complex(math.cos(the), math.sin(the))
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
         the = self._coef.p * x[_PM_TH]
@@ -438,6 +551,15 @@ class PMSMPlant(InverterPlant):
 
 
 _ALL_STATES = [(a, b, c) for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+
+
+class _Hot(dict[str, Any]):
+    """A machine's parameters at its temperatures, read as attributes by its coefficients'
+    ``of`` (the motor dataclass's checks are not repeated every thermal step)."""
+
+    def __getattr__(self, name: str) -> Any:
+        return self[name]
+
 
 #: machine type → plant class
 PLANTS: dict[str, type[InverterPlant]] = {

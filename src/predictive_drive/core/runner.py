@@ -16,6 +16,7 @@ from ..errors import ConfigError
 from .control import Controller, make_controller, strategy_names
 from .control.base import parse_switch
 from .control.speed_pi import SpeedPI
+from .devices import Device
 from .plant import InverterPlant, make_plant
 from .saturation import make_saturated_plant
 from .scenario import PlantParams, Scenario
@@ -49,9 +50,17 @@ class Components:
     controller: Controller
 
 
-def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
-    """The plant of a scenario's plant section (shared by the in-process engine and plant_node)."""
+def build_plant(
+    machine: str, p: PlantParams, *, ts: float, device: Device | None = None
+) -> InverterPlant:
+    """The plant of a scenario's plant section (shared by the in-process engine and plant_node);
+    ``device``: the devices ``p.losses.device`` names, read from their file."""
     p.check_timing(ts)
+    if bool(p.losses.device) != (device is not None):
+        raise ConfigError(
+            f"plant.losses.device {p.losses.device!r}: its device file was not read "
+            f"(config.load_device reads it)"
+        )
     sensors = None
     if p.sensed:
         sensors = Sensors(
@@ -76,6 +85,8 @@ def build_plant(machine: str, p: PlantParams, *, ts: float) -> InverterPlant:
         period_means=p.period_means,
         held_speed=p.held_speed() if p.held else None,
         u_dc_gain=p.u_dc_gain,
+        losses=p.losses if p.losses.on else None,
+        device=device,
     )
     if p.saturation is not None:  # a saturating machine (docs/physics.md#saturation)
         return make_saturated_plant(machine, p.motor, p.saturation, **settings)
@@ -94,7 +105,9 @@ def build(scenario: Scenario) -> Components:
             f"engine runs this package's nodes only"
         )
     return Components(
-        plant=build_plant(scenario.run.machine, scenario.plant, ts=scenario.ts),
+        plant=build_plant(
+            scenario.run.machine, scenario.plant, ts=scenario.ts, device=scenario.device
+        ),
         speed_pi=SpeedPI(scenario.speed_pi, ts=scenario.ts),
         controller=build_controller(scenario),
     )

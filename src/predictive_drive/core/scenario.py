@@ -10,7 +10,9 @@ from typing import Any
 from ..errors import ConfigError
 from .control import EXTERNAL, controller_class
 from .control.speed_pi import SpeedPIParams
+from .devices import Device
 from .fields import check_fields, choice, flag, quantity
+from .losses import LossParams
 from .machines import Machine
 from .signals import EXTERNAL_PREFIX, external_name
 from .timebase import StepProfile, step_index
@@ -54,8 +56,9 @@ class PlantParams:
     """Plant: machine, inverter, load steps, integrator sub-step; what makes it a real drive
     (docs/physics.md#a-real-drive), every one ideal by default: the computation delay, the
     inverter's dead time and device drops, the current and position sensors; whether a load
-    machine holds its speed (docs/physics.md#mechanics-and-load); and whether it publishes the
-    period means (docs/physics.md#continuous-time-figures)."""
+    machine holds its speed (docs/physics.md#mechanics-and-load); whether it publishes the
+    period means (docs/physics.md#continuous-time-figures); and its losses and temperatures
+    (``losses``, docs/physics.md#losses-and-temperature)."""
 
     motor: Any  #: the machine type's motor parameters (:data:`~.machines.MOTORS`)
     u_dc: float = quantity("DC-link voltage", "V", gt=0)
@@ -112,11 +115,21 @@ class PlantParams:
     #: the machine's magnetic saturation (:data:`~.machines.SATURATIONS`, the ``saturation``
     #: group; docs/physics.md#saturation); None (or model none): the linear machine
     saturation: Any = None
+    losses: LossParams = LossParams()  #: everything off unless the section says
 
     def __post_init__(self) -> None:
         check_fields(self)
         if self.saturation is not None and not self.saturation.on:
             object.__setattr__(self, "saturation", None)  # model none: the linear plant
+        if self.saturation is not None and self.losses.on:
+            # the saturating machines have no temperature model, rotor-copper or flux hooks
+            # for the loss ledger (docs/physics.md#losses-and-temperature)
+            raise ConfigError(
+                "plant.losses with plant.saturation: losses and temperatures are computed for "
+                "the linear machines only; leave plant.losses.device empty and plant.losses.machine "
+                "false (losses off), or set "
+                "plant.saturation.model none"
+            )
         self.load_profile()
         if self.current_adc_bits and math.isnan(self.current_range):
             raise ConfigError(
@@ -131,6 +144,12 @@ class PlantParams:
                     f"(plant.held_speed_times): the load machine holding the shaft takes "
                     f"whatever torque the motor makes; give load_values: [0.0]"
                 )
+        if self.losses.device and self.device_drop:
+            raise ConfigError(
+                f"plant.device_drop: {self.device_drop:g} V beside plant.losses.device "
+                f"{self.losses.device!r}: the device file gives the on-state voltages (one model "
+                f"of a conducting device); give device_drop: 0.0"
+            )
         if not math.isnan(self.current_range) and not self.current_adc_bits:
             raise ConfigError(
                 "plant.current_range: given without plant.current_adc_bits (1..24): "
@@ -226,6 +245,8 @@ class Scenario:
     #: the drawn drive this run is (JSON: its index, seed, factors and values; docs/
     #: reproduction.md#robustness), "" for none: what the recording's metadata says of it
     draw: str = ""
+    #: the inverter's devices, read from the file ``plant.losses.device`` names (None: none)
+    device: Device | None = None
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)

@@ -23,8 +23,10 @@ __all__ = [
     "strategy_name",
     "COMMAND_DIAGNOSTICS",
     "COMMAND_INDEX",
+    "DEVICES",
     "EXTERNAL",
     "EXTERNAL_PREFIX",
+    "LOSS_FIELDS",
     "PULSES",
     "REFERENCE_INDEX",
     "STATE_INDEX",
@@ -71,6 +73,47 @@ class State(NamedTuple):
     i_alpha_avg: float  #: mean stator current α, A
     i_beta_avg: float  #: mean stator current β, A
     current_sq_avg: float  #: mean of |i_s|² = i_α² + i_β², A²
+    # losses and temperatures (docs/physics.md#losses-and-temperature; NaN unless the plant's
+    # losses are on): power means over the period that ended at k (W), temperatures at k (°C)
+    p_dc: float  #: DC-link power u_dc·i_dc of the plant's equations (switching, iron not in it)
+    p_shaft: float  #: power into the load (T_L·ω_m; T_e·ω_m where a load machine holds ω_m)
+    p_copper: float  #: stator (and rotor) copper losses, R(T)·i²
+    p_iron: float  #: iron losses (from the flux's frequency and magnitude; not in the equations)
+    p_friction: float  #: viscous friction b·ω_m²
+    p_cond_t: float  #: conduction losses of the six transistors
+    p_cond_d: float  #: conduction losses of the six diodes
+    p_sw_t: float  #: switching losses of the six transistors (E_on + E_off)
+    p_sw_d: float  #: switching losses of the six diodes (E_rr)
+    # each device's losses (conduction + switching): t transistor, d diode, a..c the leg, hi/lo
+    # the upper (to +DC) or lower position
+    p_ta_hi: float
+    p_da_hi: float
+    p_ta_lo: float
+    p_da_lo: float
+    p_tb_hi: float
+    p_db_hi: float
+    p_tb_lo: float
+    p_db_lo: float
+    p_tc_hi: float
+    p_dc_hi: float
+    p_tc_lo: float
+    p_dc_lo: float
+    # each device's junction temperature (a body diode's is its transistor's die)
+    tj_ta_hi: float
+    tj_da_hi: float
+    tj_ta_lo: float
+    tj_da_lo: float
+    tj_tb_hi: float
+    tj_db_hi: float
+    tj_tb_lo: float
+    tj_db_lo: float
+    tj_tc_hi: float
+    tj_dc_hi: float
+    tj_tc_lo: float
+    tj_dc_lo: float
+    t_sink: float  #: heatsink temperature
+    t_winding: float  #: stator winding temperature (the plant's R_s follows it)
+    t_rotor: float  #: rotor temperature (an IM's R_r, a PMSM's ψ_f follow it)
 
 
 class Reference(NamedTuple):
@@ -198,6 +241,12 @@ class Command(NamedTuple):
 STATE_INDEX: Any = State(*range(len(State._fields)))
 REFERENCE_INDEX: Any = Reference(*range(len(Reference._fields)))
 COMMAND_INDEX: Any = Command(*range(len(Command._fields)))
+#: the devices of the inverter, in the order the state lists their losses and temperatures
+DEVICES: tuple[str, ...] = tuple(
+    name[2:] for name in State._fields if name.startswith("p_") and name.endswith(("_hi", "_lo"))
+)
+#: the state's fields of losses and temperatures, from ``p_dc`` on
+LOSS_FIELDS: tuple[str, ...] = State._fields[STATE_INDEX.p_dc :]
 #: the command's pulses, a :class:`PhasePulses`: ``row[PULSES]``
 PULSES: slice = slice(COMMAND_INDEX.delay_a, COMMAND_INDEX.duty_c + 1)
 #: the fields a controller reports about its decision, between ``strategy`` and ``compute_ns``

@@ -1,7 +1,7 @@
 """Paper-style figures of a recording (matplotlib, no display): speed, torque (with a zoomed
 window), stator-flux magnitude and locus, phase-a current with its spectrum and THD, vector
-utilization (MPTC), current angle and dq currents (field-oriented control); and the same overlaid
-for several runs.
+utilization (MPTC), current angle and dq currents (field-oriented control), losses and
+temperatures (a run with losses); and the same overlaid for several runs.
 
 Every line plots the recording's own samples, undecimated (a test reads them back from the
 artists and compares them with the recording).
@@ -20,6 +20,7 @@ import numpy as np
 from ..core.machines import Machine
 from ..core.metrics import METRICS, phase_a_spectrum
 from ..core.scenario import Scenario
+from ..core.signals import DEVICES
 from ..core.trace import Trace
 from ..dependencies import missing
 
@@ -27,6 +28,7 @@ __all__ = [
     "Run",
     "compare_figures",
     "fronts_figures",
+    "losses_figure",
     "realism_figures",
     "robustness_figures",
     "run_figures",
@@ -183,7 +185,52 @@ def run_figures(run: Run) -> dict[str, Any]:
         dx.legend()
         fig.tight_layout()
         figs["foc"] = fig
+    if np.isfinite(tr.col("state", "p_dc")).any():
+        figs["losses"] = losses_figure(run)
     return figs
+
+
+#: the state's loss fields a losses figure draws, by label
+LOSS_LINES = {
+    "conduction, transistors": "p_cond_t",
+    "conduction, diodes": "p_cond_d",
+    "switching, transistors": "p_sw_t",
+    "switching, diodes": "p_sw_d",
+    "copper": "p_copper",
+    "iron": "p_iron",
+    "friction": "p_friction",
+}
+
+
+def losses_figure(run: Run) -> Any:
+    """Losses and temperatures over time (docs/physics.md#losses-and-temperature): each loss as
+    its mean over the thermal step (what the thermal networks are fed: a period's switching
+    losses come in bursts), and every junction, the heatsink, the winding and the rotor."""
+    plt = _pyplot()
+    tr, sc = run.trace, run.scenario
+    t = _time(tr, "state")
+    m = max(1, round(sc.plant.losses.thermal_step / tr.ts))
+    fig, (ax, tx) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    for label, field in LOSS_LINES.items():
+        p = tr.col("state", field)[1:]
+        if not np.any(p):
+            continue
+        mean = np.convolve(p, np.ones(m) / m, mode="valid")
+        ax.plot(t[m:], mean, linewidth=0.8, label=label)  # the mean of periods k-m..k-1 at k
+    ax.set(ylabel="P / W", title=f"{run.label}: losses, means over {m} periods")
+    ax.legend(fontsize="small", ncol=2)
+    for name in DEVICES:
+        tj = tr.col("state", f"tj_{name}")
+        if np.isfinite(tj).any():
+            tx.plot(t, tj, linewidth=0.6, label=f"T_j {name}")
+    for field, label in (("t_sink", "heatsink"), ("t_winding", "winding"), ("t_rotor", "rotor")):
+        temp = tr.col("state", field)
+        if np.isfinite(temp).any():
+            tx.plot(t, temp, linewidth=1.2, linestyle="--", label=label)
+    tx.set(xlabel="t / s", ylabel="T / °C", title="temperatures")
+    tx.legend(fontsize="x-small", ncol=4)
+    fig.tight_layout()
+    return fig
 
 
 def compare_figures(runs: Sequence[Run]) -> dict[str, Any]:

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..core.signals import DEVICES
 from ..errors import ConfigError
 from ..interface import TOPICS
 from ..outputs import check_output_file
@@ -41,6 +42,13 @@ PLOTS: dict[str, list[tuple[str, str]]] = {
         ("command", "horizon"),
         ("command", "vector"),
         ("command", "current_angle"),
+    ],
+    # a run with plant.losses (docs/physics.md#losses-and-temperature); empty without
+    "temperatures (°C): junctions, heatsink, winding, rotor": [
+        *(("state", f"tj_{name}") for name in DEVICES),
+        ("state", "t_sink"),
+        ("state", "t_winding"),
+        ("state", "t_rotor"),
     ],
 }
 

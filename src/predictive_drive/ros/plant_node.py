@@ -20,6 +20,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 
 from ..codec import CODECS, command_for_step
+from ..config import device_of
 from ..core.commands import CommandError
 from ..core.control.base import SWITCHABLE
 from ..core.runner import build_plant
@@ -46,7 +47,8 @@ class PlantNode(WatchedNode):
         super().__init__("plant", **kw)
         run, params = self.load_params()
         self.n = run.steps
-        self.plant = build_plant(run.machine, params, ts=run.ts)
+        device = device_of(params, self._where())  # the file plant.losses.device names
+        self.plant = build_plant(run.machine, params, ts=run.ts, device=device)
         self._every = tool_every(run.ts)
         self.pub_state = self.publisher("state")
         self.pub_clock = self.publisher("clock")
