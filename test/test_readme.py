@@ -96,6 +96,8 @@ NOT_RUN = {
         "test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step"
     ),
     "pip install 'predictive_drive[fast]'": "make setup installs it (the [fast] extra)",
+    "python test/continuous.py": "test_svpwm_distortion_is_the_fft_of_its_continuous_waveform "
+    "runs two of its points through the same code (continuous.compare)",
     # docs/reproduction.md
     "predictive-drive reproduce fronts": "224 runs, minutes here; test_fronts.py runs a small "
     "study through the same code (api.fronts.reproduce_fronts)",
