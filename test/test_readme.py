@@ -96,6 +96,9 @@ NOT_RUN = {
         "test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step"
     ),
     "pip install 'predictive_drive[fast]'": "make setup installs it (the [fast] extra)",
+    "predictive-drive sweep SCENARIO --set ts=… --set torque_controller.current_target=sample,"
+    "period_mean --json": "a template; test_field_orientation_holds_the_operating_point_on_its_"
+    "mean_current runs five of its cells",
     "python test/continuous.py": "test_svpwm_distortion_is_the_fft_of_its_continuous_waveform "
     "runs two of its points through the same code (continuous.compare)",
     # docs/reproduction.md
