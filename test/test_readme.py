@@ -102,8 +102,16 @@ NOT_RUN = {
     "python test/continuous.py": "test_svpwm_distortion_is_the_fft_of_its_continuous_waveform "
     "runs two of its points through the same code (continuous.compare)",
     # docs/reproduction.md
-    "predictive-drive reproduce fronts": "224 runs, minutes here; test_fronts.py runs a small "
-    "study through the same code (api.fronts.reproduce_fronts)",
+    "predictive-drive reproduce fronts": "616 runs, half an hour here; test_fronts.py runs a "
+    "small study through the same code (api.fronts.reproduce_fronts)",
+    "predictive-drive sweep hs_ipmsm_steady --strategy mptc,simplified3": "seconds; "
+    "test_fronts.py runs the steady points' sweeps' code (api.study.StudyRuns.runs)",
+    "predictive-drive reproduce fronts --points im_steady --curves mptc,ifoc --periods-us none "
+    '--external "torque_controller=python3 examples/dtc_im/dtc_im/dtc_node.py" --label dtc --knob '
+    "torque_controller.torque_band=0.02,0.05,0.1,0.2 --figures figures": (
+        "four graph runs of 1 s; test_your_controller_is_drawn_on_a_front_through_the_ros_graph "
+        "runs the example on a front through the same code"
+    ),
     "time predictive-drive reproduce fronts": "the timing of the command above",
     "predictive-drive reproduce fronts --json": "the command above, its table as JSON",
     "cd ~/ws/src && git clone <this repository> predictive_drive && cd ~/ws": "a user's workspace; "

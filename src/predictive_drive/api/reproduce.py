@@ -38,7 +38,7 @@ from ..reports.realism import (
 )
 from .compare import compare
 from .controller_replay import controller_replay
-from .fronts import FRONTS_STUDY, FrontsResult, reproduce_fronts, with_knob_values
+from .fronts import FRONTS_STUDY, FrontsChoice, FrontsResult, reproduce_fronts
 from .study import Reproduction, StudyRuns, studying
 from .sweep import Case, Row
 
@@ -267,10 +267,8 @@ def reproduce(
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
     scheduler: str | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    lambda_sw: Sequence[float] | None = None,
-    fsw_khz: Sequence[float] | None = None,
-    lambda_u: Sequence[float] | None = None,
+    progress: Callable[..., None] | None = None,
+    fronts: FrontsChoice | None = None,
 ) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult:
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study, or the realism study
@@ -279,14 +277,15 @@ def reproduce(
     paper's). ``figures``: a folder for the runs drawn overlaid (PNG). ``settings``: scenario
     settings applied to every run (e.g. ``{"speed_pi.speed_loop": "immediate"}``), besides each
     row's own. ``out_root``: keep every run's bag in this folder (None: the bags a study needs
-    go to a temporary folder, removed at the end). ``progress(done, planned)``: told as each
-    run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) takes its knobs' values from
-    ``lambda_sw``, ``lambda_u`` and ``fsw_khz`` where given."""
+    go to a temporary folder, removed at the end). ``progress(done, planned[, name])``: told as
+    each run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) runs what ``fronts``
+    chooses of it (its knobs' values, points, curves, a controller of one's own)."""
     settings = dict(settings or {})
-    if scenario != FRONTS_STUDY and any(x is not None for x in (lambda_sw, fsw_khz, lambda_u)):
+    if scenario != FRONTS_STUDY and fronts is not None and fronts != FrontsChoice():
         raise ConfigError(
-            f"reproduce {scenario}: --lambda-sw, --lambda-u and --fsw-khz choose the fronts "
-            f"study's knobs"
+            f"reproduce {scenario}: --lambda-sw, --lambda-u, --fsw-khz, --periods-us, --points, "
+            f"--curves, --no-horizons, --external, --label and --knob choose the fronts study's "
+            f"runs"
         )
     if scenario in (REALISM_STUDY, FRONTS_STUDY):
         if engine != "inprocess":
@@ -305,7 +304,7 @@ def reproduce(
             f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, REALISM_STUDY, FRONTS_STUDY])}"
         )
     if scenario == FRONTS_STUDY:  # its knobs, checked before anything runs
-        fronts = with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz, lambda_u=lambda_u)
+        study = (fronts or FrontsChoice()).study(FRONTS)
     with studying(
         out_root,
         engine=engine,
@@ -316,7 +315,7 @@ def reproduce(
     ) as runner:
         result: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult
         if scenario == FRONTS_STUDY:
-            result = reproduce_fronts(runner, figures=figures, settings=settings, study=fronts)
+            result = reproduce_fronts(runner, figures=figures, settings=settings, study=study)
         elif scenario == REALISM_STUDY:
             result = reproduce_realism(runner, figures=figures, settings=settings)
         elif scenario in MTPA_STUDIES:

@@ -217,6 +217,13 @@ class Metrics:
 METRICS: dict[str, Metric] = {
     **{f.name: f.metadata[_KEY] for f in dataclasses.fields(Metrics)},
     "zero_share": Metric("V0", "%", 100.0, ".1f", "share of steps choosing the zero vector"),
+    "i_tdd_cont": Metric(
+        "TDD_i cont",
+        "%",
+        100.0,
+        ".2f",
+        "I_dist cont over one reference current of the operating point (a study states it)",
+    ),  # fmt: skip
     "compute_us_per_step": Metric("compute", "µs/step", 1.0, ".2f", "median, control law only"),
     "compute_ratio": Metric(
         "compute ratio", "", 1.0, ".3f", "decision time relative to conventional MPTC"
