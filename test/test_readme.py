@@ -102,7 +102,7 @@ NOT_RUN = {
     "python test/continuous.py": "test_svpwm_distortion_is_the_fft_of_its_continuous_waveform "
     "runs two of its points through the same code (continuous.compare)",
     # docs/reproduction.md
-    "predictive-drive reproduce fronts": "616 runs, half an hour here; test_fronts.py runs a "
+    "predictive-drive reproduce fronts": "616 runs, 13-31 min here; test_fronts.py runs a "
     "small study through the same code (api.fronts.reproduce_fronts)",
     "predictive-drive sweep hs_ipmsm_steady --strategy mptc,simplified3": "seconds; "
     "test_fronts.py runs the steady points' sweeps' code (api.study.StudyRuns.runs)",
@@ -112,7 +112,7 @@ NOT_RUN = {
         "four graph runs of 1 s; test_your_controller_is_drawn_on_a_front_through_the_ros_graph "
         "runs the example on a front through the same code"
     ),
-    "time predictive-drive reproduce fronts": "the timing of the command above",
+    "time predictive-drive reproduce fronts --json": "the timing of the command above",
     "predictive-drive reproduce fronts --json": "the command above, its table as JSON",
     "cd ~/ws/src && git clone <this repository> predictive_drive && cd ~/ws": "a user's workspace; "
     "installs.colcon_install copies the package as a clone has it",
