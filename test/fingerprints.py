@@ -1,9 +1,10 @@
 """Fingerprints of today's recordings: what ``test_fingerprints.py`` holds the core to.
 
-Every short scenario runs with every strategy of its family, on the ideal drive and on the
-realism study's real drive (one period of computation delay with its compensation, dead time
-with device drops, the sensors), in-process, :data:`STEPS` steps each, the plant's period means
-on (they change nothing else: ``test_period_means_change_nothing_else``). A fingerprint is, per
+Every short scenario, and the fronts' steady points, runs with every strategy of its family, on
+the ideal drive and on the realism study's real drive (one period of computation delay with its
+compensation, dead time with device drops, the sensors), in-process, :data:`STEPS` steps each,
+the plant's period means on (they change nothing else:
+``test_period_means_change_nothing_else``). A fingerprint is, per
 per-step topic (state, reference, command) and per field, a hash of the field's column as
 little-endian doubles: every field but ``compute_ns`` (wall time, never the same twice).
 
@@ -41,6 +42,14 @@ SCENARIOS: dict[str, tuple[str, dict[str, Any]]] = {
     "ipmsm_short": ("ipmsm_validation", {}),
     "ipmsm_mtpa_short": ("ipmsm_validation", {}),
     "hs_ipmsm_mtpa_short": ("ipmsm_validation", {"plant.speed_window": 1e-3}),
+    # the fronts' steady points (docs/reproduction.md#fronts-distortion-against-switching-frequency)
+    # and their field-oriented twins; their direct_mpc twins (*_steady_mpc) are the horizons'
+    "im_steady": ("im_paper", {}),
+    "im_steady_foc": ("im_paper", {}),
+    "ipmsm_steady": ("ipmsm_validation", {}),
+    "ipmsm_steady_foc": ("ipmsm_validation", {}),
+    "hs_ipmsm_steady": ("ipmsm_validation", {}),
+    "hs_ipmsm_steady_foc": ("ipmsm_validation", {"plant.speed_window": 1e-3}),
 }
 #: fields whose values are measured, not computed
 UNSTABLE = {"compute_ns"}

@@ -254,7 +254,10 @@ def test_mtpa_laws_in_closed_loop_at_rated_torque(mtpa_runs):
 
 def test_a_live_switch_between_mtpa_laws_is_bumpless():
     """formula → injection at 0.2 s: the injection starts at the formula's angle, so the angle
-    does not jump (beyond the dither) and stays at θ_MTPA."""
+    does not jump (beyond the dither) and stays at θ_MTPA. The amplitude steps by the reluctance
+    torque's share (2.9 %: the formula counts it, the injection cannot), which the speed loop
+    takes up: the angle swings 0.94° beyond the dither for a few tens of ms and its mean is back
+    on θ_MTPA within 0.1 s."""
     sc = load_scenario("ipmsm_mtpa_short", strategy="foc_formula")
     k_sw = 2000
     tr = run_inprocess(sc, switches=[(k_sw, "foc_injection")])
@@ -264,7 +267,8 @@ def test_a_live_switch_between_mtpa_laws_is_bumpless():
     assert tr.strategy_names[strat[k_sw]] == "foc_injection"
     dither = math.degrees(sc.controller.injection_amplitude)
     assert abs(th[k_sw] - th[k_sw - 1]) <= dither + 0.01
-    assert np.max(np.abs(th[k_sw:] - 13.1)) < dither + 0.5
+    assert np.max(np.abs(th[k_sw:] - 13.1)) < dither + 1.0
+    assert np.mean(th[k_sw + 1000 :]) == pytest.approx(13.1, abs=0.1)
 
 
 def test_the_dither_period_must_be_a_whole_number_of_samples():
@@ -357,3 +361,137 @@ def test_field_orientation_of_the_induction_motor_is_refused_a_bad_setting():
         dataclasses.replace(sc.controller, min_flux_share=0.0)
     with pytest.raises(ConfigError, match=r"current_tuning: 'fast' is not one of bandwidth"):
         dataclasses.replace(sc.controller, current_tuning="fast")
+
+
+def _im_state(i_ab: complex, omega_m: float, k: int = 0):
+    from predictive_drive.core.signals import State
+
+    values = dict.fromkeys(State._fields, 0.0)
+    values.update(k=float(k), i_alpha=i_ab.real, i_beta=i_ab.imag, omega_m=omega_m, u_dc=582.0)
+    return State(**values)
+
+
+def test_field_orientation_of_the_induction_motor_feeds_forward_its_steady_state_voltage():
+    """At a steady point on the reference (PI error zero, the integrators holding the resistive
+    drop R_σ·i), the IFOC's voltage is the machine's own steady-state voltage in the rotor flux's
+    frame, u_s = R_s i_s + jω_s ψ_s, ψ_s = σL_s i_s + (L_m/L_r)ψ_r, ω_s = pω_m + R_r L_m
+    i_q/(L_r ψ_r), put into αβ at the frame's angle in the middle of the period: each sign of the
+    decoupling -ω_s σL_s i_q - (L_m R_r/L_r²)ψ_r (d) and ω_s σL_s i_d + pω_m(L_m/L_r)ψ_r (q)
+    holds it (a flipped one is off by volts)."""
+    from predictive_drive.core.signals import Reference
+
+    sc = load_scenario("im_steady_foc")
+    params = dataclasses.replace(sc.controller, current_target="sample")
+    ctrl = make_controller("foc_im", params, ts=sc.ts)
+    m = sc.plant.motor
+    t_ref, psi_ref, omega_m, theta = 3.0, 0.71, 290.0, 0.4
+    psi_r = m.l_m / m.l_s * psi_ref
+    i = complex(psi_r / m.l_m, t_ref * m.l_r / (1.5 * m.p * m.l_m * psi_r))
+    r_sigma = m.r_s + m.r_r * (m.l_m / m.l_r) ** 2
+    ctrl.model.psi_r, ctrl.model.theta = psi_r, theta
+    ctrl.loop.integral = r_sigma * i
+    state = _im_state(inverse_park(i, theta), omega_m)
+    ctrl._observe(state)
+    u_ab = ctrl._decide(state, Reference(0.0, 0.0, t_ref, psi_ref, omega_m))
+    w_s = m.p * omega_m + m.r_r * m.l_m * i.imag / (m.l_r * psi_r)
+    psi_s = m.sigma * m.l_s * i + m.l_m / m.l_r * psi_r
+    u = m.r_s * i + 1j * w_s * psi_s
+    assert u_ab == pytest.approx(inverse_park(u, theta + 0.5 * w_s * sc.ts), rel=1e-12)
+    assert abs(u) > 100.0  # volts of back-EMF: a wrong sign would show
+
+
+@pytest.mark.parametrize("khz", [0.5, 2.0, 20.0])
+def test_the_mean_offset_is_the_period_mean_of_the_periodic_current(khz):
+    """:func:`~predictive_drive.core.control.foc.mean_offset` against the periodic steady state
+    of L di/dτ = u·e^{-jωτ} - (R + jωL)·i - e integrated by RK4 (2000 steps a period; the periodic
+    start found by shooting: one period from rest and one of the free response give the linear
+    map, its fixed point the start): the period's mean current minus its value at the ends, for
+    paper 000's R_σ, σL_s at its 299 rad/s frame speed — jωTs²u/(12 L) to first order."""
+    from predictive_drive.core.control.foc import mean_offset
+
+    r, ind, w, ts = 4.69, 0.01636, 299.0, 1e-3 / khz
+    u, e = complex(80.0, 210.0), complex(10.0, 190.0)
+    n = 2000
+    h = ts / n
+
+    def period(i, forced):
+        def f(tau, i):
+            drive = u * cmath.exp(-1j * w * tau) - e if forced else 0j
+            return (drive - complex(r, w * ind) * i) / ind
+
+        tau, total = -ts / 2, 0j
+        for _ in range(n):
+            k1 = f(tau, i)
+            k2 = f(tau + h / 2, i + h / 2 * k1)
+            k3 = f(tau + h / 2, i + h / 2 * k2)
+            k4 = f(tau + h, i + h * k3)
+            nxt = i + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            total += h / 2 * (i + nxt)
+            i, tau = nxt, tau + h
+        return i, total / ts
+
+    rise, _ = period(0j, True)
+    decay, _ = period(1 + 0j, False)
+    start = rise / (1 - decay)  # i(Ts) = decay·i(0) + rise = i(0)
+    end, mean = period(start, True)
+    assert end == pytest.approx(start, rel=1e-9)
+    offset = mean_offset(u, w=w, ts=ts, r=r, ind=ind)
+    assert mean - start == pytest.approx(offset, rel=1e-6)
+    first = 1j * w * ts * ts * u / (12 * ind)
+    assert offset == pytest.approx(first, rel=0.1 * (w * ts) ** 2 + 1e-3)
+
+
+SPMSM = PMSM(0.2, 0.0085, 0.0085, 0.175, 4, 0.001, 12.0, 750.0)  # paper 001 §3
+
+
+@pytest.mark.parametrize(
+    ("motor", "torque"),
+    [(IPMSM, 15.0), (IPMSM, 0.3), (IPMSM, 30.0), (HS, 4.0), (HS, 13.0), (SPMSM, 6.0)],
+    ids=["ipmsm-rated", "ipmsm-low", "ipmsm-twice", "hs-4", "hs-13", "surface"],
+)
+def test_the_formula_asks_for_the_amplitude_that_makes_the_torque(motor, torque):
+    """foc_formula's amplitude: at its eq-10 angle it makes T* by eq 8, the reluctance torque
+    counted (Newton) — the bisection of mtpa_point finds the same; |T*|/k_t would make paper
+    001's IPMSM 15.47 N·m for 15."""
+    from predictive_drive.core.control.mtpa import mtpa_current
+
+    kw = {"p": motor.p, "psi_f": motor.psi_f, "l_d": motor.l_d, "l_q": motor.l_q}
+    i_s = mtpa_current(torque, **kw)
+    assert i_s == pytest.approx(mtpa_point(torque, **kw).i_s, rel=1e-10)
+    assert torque_at(i_s, formula_angle(i_s, motor.psi_f, motor.l_d, motor.l_q), **kw) == (
+        pytest.approx(torque, rel=1e-12)
+    )
+    k_t = 1.5 * motor.p * motor.psi_f
+    assert mtpa_current(torque, **kw, start=0.5 * torque / k_t) == pytest.approx(i_s, rel=1e-12)
+    if motor is IPMSM and torque == 15.0:
+        too_much = torque / k_t
+        made = torque_at(too_much, formula_angle(too_much, *list(kw.values())[1:]), **kw)
+        assert made == pytest.approx(15.471, abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("scenario", "khz", "target", "torque", "flux"),
+    [
+        ("ipmsm_steady_foc", 10.0, "period_mean", 0.0, 0.0),
+        ("ipmsm_steady_foc", 0.5, "sample", 0.8, -2.9),
+        ("ipmsm_steady_foc", 0.5, "period_mean", 0.07, 0.5),
+        ("im_steady_foc", 1.0, "sample", -9.4, -4.6),
+        ("im_steady_foc", 1.0, "period_mean", 1.7, 1.0),
+    ],
+    ids=["ipmsm-10k", "ipmsm-0.5k-sample", "ipmsm-0.5k-mean", "im-1k-sample", "im-1k-mean"],
+)
+def test_field_orientation_holds_the_operating_point_on_its_mean_current(
+    scenario, khz, target, torque, flux
+):
+    """The fronts' FOC (technical optimum, ``current_target``) at a steady point: the mean
+    torque's and |ψ_s|'s miss of T* and ψ* (%, continuous time, over the window), measured:
+    holding the sample, a low carrier leaves the operating point (paper 000's IM at 1 kHz:
+    -9.4 % of torque); holding the period's mean it stays within 2 %."""
+    from continuous import scenario as scenario_with
+    from predictive_drive.core.metrics import compute_metrics
+
+    sc = scenario_with(scenario, {"ts": 1e-3 / khz, "torque_controller.current_target": target})
+    m = compute_metrics(run_inprocess(sc), t_start=sc.logger.window_start)
+    t_ref, psi_ref = sc.speed_pi.torque_values[-1], sc.speed_pi.flux_ref
+    assert 100 * m.t_mean_error_cont / t_ref == pytest.approx(torque, abs=0.1)
+    assert 100 * m.psi_mean_error_cont / psi_ref == pytest.approx(flux, abs=0.1)

@@ -384,48 +384,12 @@ def test_period_means_match_the_closed_form_of_a_locked_rotor(substeps):
         mean, square = (m1 - m0) / TS, (q1 - q0) / TS
         assert s.i_alpha_avg == pytest.approx(mean, rel=rtol)
         assert s.current_sq_avg == pytest.approx(square, rel=rtol)
+        assert complex(s.i_d_avg, s.i_q_avg) == pytest.approx(mean, rel=rtol)  # θ = 0: αβ = dq
         assert s.torque_avg == pytest.approx(0.0, abs=1e-9) and s.torque_sq_avg < 1e-15
         assert s.flux_avg == pytest.approx(motor.l_d * mean + motor.psi_f, rel=rtol)
         flux_square = motor.l_d**2 * square + 2 * motor.l_d * motor.psi_f * mean + motor.psi_f**2
         assert s.flux_sq_avg == pytest.approx(flux_square, rel=rtol)
     assert s.i_alpha_avg > 20.0  # the current has risen well off zero
-
-
-def test_continuous_current_thd_counts_what_samples_miss():
-    """A current of known parts — 10 A fundamental at 50 Hz, 1 A of 5th harmonic (negative
-    sequence) and 0.5 A rotating at 27 kHz, above the 10 kHz the steps can show — given as
-    the plant gives it: period means of i_αβ and of |i|², integrated in closed form. The
-    continuous THD counts all of it, sqrt(1² + 0.5²)/10; the sampled THD of phase a counts
-    what the aliased samples show."""
-    ts, f1, n = 5e-5, 50.0, 8000
-    parts = [(10.0, 2 * math.pi * f1), (1.0, -5 * 2 * math.pi * f1), (0.5, 2 * math.pi * 27e3)]
-    k = np.arange(n + 1)
-    t0 = (k - 1) * ts  # state k holds the means over period k-1
-
-    def period_mean(nu):  # mean of e^{jνt} over [t0, t0 + Ts)
-        return np.exp(1j * nu * (t0 + ts / 2)) * np.sinc(nu * ts / (2 * math.pi))
-
-    mean_i = sum(a * period_mean(nu) for a, nu in parts)
-    mean_sq = sum(a * a for a, _ in parts) + sum(
-        2 * (a * b * period_mean(nu - mu)).real
-        for i, (a, nu) in enumerate(parts)
-        for b, mu in parts[i + 1 :]
-    )
-    theta = 2 * math.pi * f1 * k * ts
-    sampled = sum(a * np.exp(1j * nu * k * ts) for a, nu in parts)
-    state = np.zeros((n + 1, len(State._fields)))
-    columns = {
-        "k": k, "t": k * ts, "theta_e": np.mod(theta, 2 * math.pi), "i_alpha": sampled.real,
-        "i_alpha_avg": mean_i.real, "i_beta_avg": mean_i.imag, "current_sq_avg": mean_sq,
-    }  # fmt: skip
-    for name, values in columns.items():
-        state[:, State._fields.index(name)] = values
-    state[:, State._fields.index("theta_e_true")] = state[:, State._fields.index("theta_e")]
-    state[:, State._fields.index("i_alpha_true")] = sampled.real
-    tr = Trace(ts, state, np.zeros((n + 1, 5)), np.zeros((n, len(Command._fields))))
-    m = compute_metrics(tr, thd_window=(0.0, 0.2))
-    assert m.thd_cycles == 10
-    assert m.i_thd_cont == pytest.approx(math.hypot(1.0, 0.5) / 10.0, rel=1e-3)
 
 
 def test_switching_effort_lowers_the_switching_frequency(ipmsm_short):

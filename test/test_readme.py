@@ -80,7 +80,6 @@ NOT_RUN = {
     "package.xml's keys to setup.py",
     "colcon build": "test_colcon.py and test_install.py build the workspace",
     "pip install foxglove-sdk": "make setup installs it (the [live] extra)",
-    "predictive-drive --help": "test_help_is_plain_text_and_lists_every_verb",
     "predictive-drive VERB --help": "test_help_is_plain_text_and_lists_every_verb",
     # docs/ros.md
     "ROS_DOMAIN_ID=N predictive-drive param set torque_controller strategy mptc": "the README's "
@@ -96,10 +95,23 @@ NOT_RUN = {
         "test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step"
     ),
     "pip install 'predictive_drive[fast]'": "make setup installs it (the [fast] extra)",
+    "predictive-drive sweep SCENARIO --set ts=… --set torque_controller.current_target=sample,"
+    "period_mean --json": "a template; test_field_orientation_holds_the_operating_point_on_its_"
+    "mean_current runs five of its cells",
+    "python test/continuous.py": "test_svpwm_distortion_is_the_fft_of_its_continuous_waveform "
+    "runs two of its points through the same code (continuous.compare)",
     # docs/reproduction.md
-    "predictive-drive reproduce fronts": "224 runs, minutes here; test_fronts.py runs a small "
-    "study through the same code (api.fronts.reproduce_fronts)",
-    "time predictive-drive reproduce fronts": "the timing of the command above",
+    "predictive-drive reproduce fronts": "616 runs, 13-31 min here; test_fronts.py runs a "
+    "small study through the same code (api.fronts.reproduce_fronts)",
+    "predictive-drive sweep hs_ipmsm_steady --strategy mptc,simplified3": "seconds; "
+    "test_fronts.py runs the steady points' sweeps' code (api.study.StudyRuns.runs)",
+    "predictive-drive reproduce fronts --points im_steady --curves mptc,ifoc --periods-us none "
+    '--external "torque_controller=python3 examples/dtc_im/dtc_im/dtc_node.py" --label dtc --knob '
+    "torque_controller.torque_band=0.02,0.05,0.1,0.2 --figures figures": (
+        "four graph runs of 1 s; test_your_controller_is_drawn_on_a_front_through_the_ros_graph "
+        "runs the example on a front through the same code"
+    ),
+    "time predictive-drive reproduce fronts --json": "the timing of the command above",
     "predictive-drive reproduce fronts --json": "the command above, its table as JSON",
     "predictive-drive reproduce robustness": "hundreds of runs; test_robustness.py runs a short "
     "study through the same code (api.robustness.reproduce_robustness), test_install.py the verb",

@@ -1,7 +1,8 @@
 """``predictive-drive reproduce fronts``: every strategy's front of distortion against switching
 frequency at each steady operating point (:mod:`predictive_drive.reports.fronts`), FOC + SVPWM
-the baseline, run as a sweep on the local cores or a Dask cluster; the fronts compared at common
-switching frequencies and ranked there
+the baseline, run as a sweep on the local cores or a Dask cluster — and a controller of one's own
+through the ROS graph beside them; each run checked against the operating point, the fronts
+compared at common switching frequencies and ranked there
 (docs/reproduction.md#fronts-distortion-against-switching-frequency)."""
 
 from __future__ import annotations
@@ -14,30 +15,45 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..config import apply_settings, load_scenario, load_scenario_text, resolve_scenario_path
+from ..config import apply_settings, load_scenario_text, resolve_scenario_path
+from ..core.control.mtpa import mtpa_point
+from ..core.machines import Machine
+from ..core.scenario import Scenario
+from ..core.signals import EXTERNAL_PREFIX, external_name
 from ..errors import ConfigError
 from ..reports.fronts import (
     COMMON_FSW,
     FRONTS,
-    HOLD_SHARE,
     KNOBS,
-    MAX_GAP,
+    PREDICTION,
     RANKED,
     SHOWN,
+    TOLERANCE,
     Curve,
     OperatingPoint,
+    interpolate,
+    joined,
+    pareto,
+    reading,
 )
 from .study import Reproduction, StudyRuns
 from .sweep import Case
 
 __all__ = [
+    "Excluded",
     "FrontCurve",
     "FrontPoint",
     "FrontTable",
+    "FrontsChoice",
     "FrontsResult",
+    "external_curve",
     "interpolate",
+    "joined",
     "pareto",
+    "prediction_setting",
+    "reading",
     "reproduce_fronts",
+    "subset",
     "with_knob_values",
 ]
 
@@ -46,31 +62,44 @@ FRONTS_STUDY = "fronts"
 _HOW = (
     "each point one run at a steady operating point (the shaft held by a load machine, T* "
     "held), its figures over the scenario's window in continuous time (the plant's period "
-    "means): T_ripple cont = RMS of the torque about its mean, THD_i cont = the stator "
-    "current's distortion over its fundamental (every frequency, three phases), f_sw = "
-    "turn-on events per device per second. A point whose mean torque misses T* by more than "
-    "half has left the operating point: listed, not on the front. The front of a curve is its "
-    "points no other point of the curve beats in both f_sw and the figure; between them it is "
-    "interpolated log-log, '-' outside its range or across a gap of more than twice in f_sw. "
-    "Rank: lowest first at each frequency."
+    "means): T_ripple cont = RMS of the torque about its mean, T_RMSE cont = RMS of the torque "
+    "against T*, THD_i cont = the stator current's distortion over its own fundamental (every "
+    "frequency, three phases, over whole fundamental periods), TDD = the same distortion over "
+    "the operating point's current (base_current_a), f_sw = turn-on events per device per "
+    "second. A point holds the operating point when its mean torque lies within 2 % of T*, its "
+    "mean |psi_s| within 2 % of psi* and its current's fundamental within 2 % of the operating "
+    "point's current; the rest are listed (excluded) with their miss, not on the front. The "
+    "front of a curve is its points no other of its points beats in both f_sw and the figure; "
+    "a column reads the front's point within 3 % of its frequency as measured, else "
+    "interpolates log-log between the neighbours that enclose it when they are at most twice "
+    "apart and one regime (the figure steps by no more than the cube of their f_sw ratio: a "
+    "steeper step is a jump between two ways of switching), else '-'. Rank: lowest first at "
+    "each frequency."
 )
 
 
 @dataclass(frozen=True)
 class FrontPoint:
-    """One run of a curve: its knob value, figures (:data:`~..reports.fronts.SHOWN`, by metric
-    key), whether it held the operating point, and on which figures' fronts it lies."""
+    """One run of a curve: its knob value and control period, figures
+    (:data:`~..reports.fronts.SHOWN`, by metric key), how far it missed the operating point
+    (``misses``: torque, flux and current, signed shares), whether it held it (and if not why),
+    and on which figures' fronts it lies."""
 
     value: float
+    ts: float
     figures: dict[str, float]
+    misses: dict[str, float]
     holds: bool
+    reason: str
     on_front: dict[str, bool]
     wall_s: float
 
 
 @dataclass(frozen=True)
 class FrontCurve:
-    """A strategy traced over its knob at one operating point."""
+    """A strategy traced over its knob at one operating point; ``prediction``: the PMSM
+    prediction its runs used where the family has the choice (read from the settings applied),
+    else None; ``external``: the command of a controller of one's own (None: a built-in)."""
 
     name: str
     strategy: str
@@ -78,27 +107,50 @@ class FrontCurve:
     knob: str
     settings: dict[str, Any]
     points: list[FrontPoint]
+    prediction: str | None = None
+    external: str | None = None
 
-    def front(self, key: str) -> list[tuple[float, float]]:
-        """(f_sw, figure) of the front of figure ``key``, by rising f_sw."""
-        pts = [(p.figures["f_sw_hz"], p.figures[key]) for p in self.points if p.on_front[key]]
-        return sorted(pts)
+    def front(self, key: str) -> list[FrontPoint]:
+        """The points on the front of figure ``key``, by rising f_sw."""
+        on = [p for p in self.points if p.on_front[key]]
+        return sorted(on, key=lambda p: (p.figures["f_sw_hz"], p.figures[key]))
+
+
+@dataclass(frozen=True)
+class Excluded:
+    """A run that left the operating point: its curve, knob value, period, f_sw, misses (signed
+    shares) and why."""
+
+    curve: str
+    value: float
+    ts: float
+    f_sw_hz: float
+    misses: dict[str, float]
+    reason: str
 
 
 @dataclass(frozen=True)
 class FrontTable:
-    """One operating point: its curves, each front at the common frequencies (``at[metric]
-    [curve]``, None outside the curve's range) and the ranking there (``ranking[metric]``, per
-    frequency the curves best first), beside the papers' ranking."""
+    """One operating point: its curves, each front read at the common frequencies (``at[metric]
+    [curve]``, None where the table leaves it blank) with the mean torque's miss there
+    (``torque_miss_at[metric][curve]``, a signed share), the ranking there (``ranking[metric]``,
+    per frequency the curves best first) beside the papers' ranking; the references (T* N·m, ψ*
+    Wb), the current the TDD divides by (``base_current_a``, an amplitude, and what it is) and
+    the runs that left the operating point."""
 
     point: str
     caption: str
     curves: list[FrontCurve]
     at: dict[str, dict[str, list[float | None]]]
+    torque_miss_at: dict[str, dict[str, list[float | None]]]
     ranking: dict[str, list[list[str]]]
     papers_ranking: tuple[str, ...]
     papers_source: str
     torque_ref: float
+    flux_ref: float
+    base_current_a: float
+    base_current: str
+    excluded: list[Excluded]
 
 
 @dataclass(frozen=True)
@@ -106,6 +158,7 @@ class FrontsResult(Reproduction):
     """``reproduce fronts``: every operating point's curves and their comparison."""
 
     frequencies: tuple[float, ...]
+    tolerance: dict[str, float]
     points: list[FrontTable]
     runs: int
     wall_s: float
@@ -115,6 +168,7 @@ class FrontsResult(Reproduction):
         out: dict[str, Any] = {
             **self.head(),
             "frequencies_hz": list(self.frequencies),
+            "tolerance": self.tolerance,
             "runs": self.runs,
             "wall_s": self.wall_s,
             "points": [dataclasses.asdict(t) for t in self.points],
@@ -124,54 +178,18 @@ class FrontsResult(Reproduction):
         return out
 
 
-def pareto(points: Sequence[tuple[float, float]]) -> list[bool]:
-    """Which of (f_sw, figure) pairs lie on the front: no other pair has a lower-or-equal f_sw
-    and a lower-or-equal figure, one of them lower. NaN pairs never do."""
-    out = []
-    for i, (f, v) in enumerate(points):
-        if not (math.isfinite(f) and math.isfinite(v)):
-            out.append(False)
-            continue
-        dominated = any(
-            j != i and g <= f and w <= v and (g < f or w < v)
-            for j, (g, w) in enumerate(points)
-            if math.isfinite(g) and math.isfinite(w)
-        )
-        out.append(not dominated)
-    return out
-
-
-def interpolate(
-    front: Sequence[tuple[float, float]], f: float, *, max_gap: float = MAX_GAP
-) -> float | None:
-    """The front (f_sw, figure) pairs, rising in f_sw, at ``f`` Hz: log-log linear between the
-    neighbours (linear where a figure is not positive); None outside the front's range and
-    between neighbours more than ``max_gap`` times apart."""
-    if not front or f < front[0][0] or f > front[-1][0]:
-        return None
-    for (f0, v0), (f1, v1) in zip(front, front[1:]):
-        if f0 <= f <= f1:
-            if f == f0 or f == f1:
-                return v0 if f == f0 else v1
-            if f1 > max_gap * f0:
-                return None
-            s = (math.log(f) - math.log(f0)) / (math.log(f1) - math.log(f0))
-            if v0 > 0 and v1 > 0:
-                return math.exp(math.log(v0) + s * (math.log(v1) - math.log(v0)))
-            return v0 + s * (v1 - v0)
-    return front[0][1]  # a front of one point, at exactly its frequency
-
-
 def with_knob_values(
     study: Mapping[str, OperatingPoint],
     *,
     lambda_sw: Sequence[float] | None = None,
     fsw_khz: Sequence[float] | None = None,
     lambda_u: Sequence[float] | None = None,
+    periods_us: Sequence[float] | None = None,
 ) -> dict[str, OperatingPoint]:
     """The study with every finite-control-set curve traced over ``lambda_sw``, every
-    direct_mpc curve over ``lambda_u`` and every FOC curve over the carriers ``fsw_khz``
-    (ts = 1/f_sw) instead of its own values; ConfigError names a value outside the knob's
+    direct_mpc curve over ``lambda_u``, every FOC curve over the carriers ``fsw_khz`` (ts =
+    1/f_sw) and every finite-control-set curve at the other periods ``periods_us`` (µs; empty:
+    the papers' period alone) instead of its own; ConfigError names a value outside the knob's
     range (:data:`~..reports.fronts.KNOBS`)."""
     given = {
         "torque_controller.lambda_sw": lambda_sw,
@@ -183,6 +201,11 @@ def with_knob_values(
             if not (math.isfinite(f) and f > 0):
                 raise ConfigError(f"--fsw-khz: {f!r} is not a positive number of kHz")
         given["ts"] = [1.0 / (1e3 * f) for f in fsw_khz]
+    periods = None if periods_us is None else tuple(p / 1e6 for p in periods_us)
+    lo, hi = KNOBS["ts"]
+    for us in periods_us or ():
+        if not (math.isfinite(us) and lo <= us / 1e6 <= hi):
+            raise ConfigError(f"--periods-us: {us!r} is outside {lo * 1e6:g}..{hi * 1e6:g}")
     for key, values in given.items():
         if values is None:
             continue
@@ -196,10 +219,13 @@ def with_knob_values(
                 raise ConfigError(f"{_knob_option(key)}: {shown!r} is outside {rng}")
     out = {}
     for name, op in study.items():
-        curves = tuple(
-            dataclasses.replace(c, values=tuple(given[c.knob] or c.values)) for c in op.curves
-        )
-        out[name] = dataclasses.replace(op, curves=curves)
+        curves = []
+        for c in op.curves:
+            c = dataclasses.replace(c, values=tuple(given.get(c.knob) or c.values))
+            if periods is not None and c.periods:
+                c = dataclasses.replace(c, periods=periods)
+            curves.append(c)
+        out[name] = dataclasses.replace(op, curves=tuple(curves))
     return out
 
 
@@ -208,42 +234,233 @@ def _knob_option(key: str) -> str:
             "--lambda-u"}.get(key, "--fsw-khz")  # fmt: skip
 
 
-def _plans(
-    study: Mapping[str, OperatingPoint], settings: dict[str, Any]
-) -> list[tuple[str, OperatingPoint, dict[str, list[tuple[Curve, Case]]]]]:
-    """Per operating point, its cases grouped by scenario file; every scenario the cases make is
-    checked before anything runs (a bad setting is refused naming the key)."""
+def subset(
+    study: Mapping[str, OperatingPoint],
+    *,
+    points: Sequence[str] | None = None,
+    curves: Sequence[str] | None = None,
+    horizons: bool = True,
+) -> dict[str, OperatingPoint]:
+    """The study's operating points ``points`` (all if None) with their curves named in
+    ``curves`` (all if None), and without the long horizons (N > 1) unless ``horizons``;
+    ConfigError names what the study has not, listing what it has, or a choice that leaves
+    nothing to run."""
+    if points is not None:
+        unknown = [p for p in points if p not in study]
+        if unknown:
+            raise ConfigError(
+                f"--points {unknown[0]}: not an operating point of the study; one of "
+                f"{', '.join(study)}"
+            )
+    chosen = {n: op for n, op in study.items() if points is None or n in points}
+    names = {c.name for op in chosen.values() for c in op.curves}
+    for c in curves or ():
+        if c not in names:
+            raise ConfigError(
+                f"--curves {c}: no curve of that name at {', '.join(chosen)}; the curves: "
+                f"{', '.join(sorted(names))}"
+            )
+    out = {}
+    for n, op in chosen.items():
+        kept = tuple(
+            c
+            for c in op.curves
+            if (curves is None or c.name in curves) and (horizons or c.horizon == 1)
+        )
+        if kept:
+            out[n] = dataclasses.replace(op, curves=kept)
+    if not out:
+        raise ConfigError("--points, --curves and --no-horizons leave no curve to run")
+    return out
+
+
+def external_curve(
+    study: Mapping[str, OperatingPoint],
+    command: str,
+    *,
+    label: str | None = None,
+    knobs: Mapping[str, Sequence[Any]] | None = None,
+) -> dict[str, OperatingPoint]:
+    """The study (of one operating point) with a torque controller of one's own added as a
+    curve: ``command`` starts it (run through the ROS graph on the point's finite-control-set
+    scenario, docs/ros.md#your-controller-on-the-fronts), ``label`` names it
+    (``external:LABEL``), ``knobs`` (at most one of its own parameters, ``torque_controller.
+    NAME``, and the period ``ts``) the values it is traced over — all of them at each period;
+    none: one run as its section says. ConfigError for a study of several points or a knob
+    that is not its own."""
+    if len(study) != 1:
+        raise ConfigError(
+            f"--external: your controller goes on one operating point; choose it with --points "
+            f"(one of {', '.join(study)})"
+        )
+    ((name, op),) = study.items()
+    knobs = dict(knobs or {})
+    periods = tuple(float(v) for v in knobs.pop("ts", ()))
+    if len(knobs) > 1 or any(not k.startswith("torque_controller.") for k in knobs):
+        raise ConfigError(
+            f"--knob {', '.join(knobs)}: your controller is traced over one of its own "
+            f"parameters (torque_controller.NAME=V1,V2,...) and/or its period (ts=T1,T2,...)"
+        )
+    lo, hi = KNOBS["ts"]
+    for p in periods:
+        if not (math.isfinite(p) and lo <= p <= hi):
+            raise ConfigError(f"--knob ts: {p!r} s is outside {lo:g}..{hi:g} s")
+    scenario = op.scenario
+    if not scenario:
+        raise ConfigError(f"--external: the operating point {name} names no scenario to run on")
+    strategy = external_name(label or "torque_controller")  # a name bags and files can hold
+    if knobs:
+        ((knob, values),) = knobs.items()
+        curve = Curve(
+            strategy, scenario, knob, tuple(values), label=strategy, periods=periods,
+            period_values=len(values), external=command,
+        )  # fmt: skip
+    else:  # over its period, or one run as its section says (NaN: the scenario's own period)
+        curve = Curve(
+            strategy, scenario, "ts", periods or (math.nan,), label=strategy, external=command
+        )
+    return {name: dataclasses.replace(op, curves=(*op.curves, curve))}
+
+
+@dataclass(frozen=True)
+class FrontsChoice:
+    """What of the study a user runs (``reproduce fronts`` options): the knobs' values
+    (``lambda_sw``, ``lambda_u``, ``fsw_khz``, ``periods_us``: None, each curve's own), the
+    operating points and curves (None: all), the long horizons or not, and a controller of
+    one's own (``external``: its command; ``label``; ``knobs``: what it is traced over)."""
+
+    lambda_sw: Sequence[float] | None = None
+    lambda_u: Sequence[float] | None = None
+    fsw_khz: Sequence[float] | None = None
+    periods_us: Sequence[float] | None = None
+    points: Sequence[str] | None = None
+    curves: Sequence[str] | None = None
+    horizons: bool = True
+    external: str | None = None
+    label: str | None = None
+    knobs: Mapping[str, Sequence[Any]] | None = None
+
+    def study(self, base: Mapping[str, OperatingPoint] = FRONTS) -> dict[str, OperatingPoint]:
+        """The study this choice makes of ``base``, checked before anything runs."""
+        if self.external is None and (self.label is not None or self.knobs):
+            raise ConfigError(
+                "--label and --knob name and trace a controller of your own: give --external "
+                "torque_controller=COMMAND"
+            )
+        out = with_knob_values(
+            subset(base, points=self.points, curves=self.curves, horizons=self.horizons),
+            lambda_sw=self.lambda_sw,
+            lambda_u=self.lambda_u,
+            fsw_khz=self.fsw_khz,
+            periods_us=self.periods_us,
+        )
+        if self.external is not None:
+            out = external_curve(out, self.external, label=self.label, knobs=self.knobs)
+        return out
+
+
+def _base_current(sc: Scenario, torque: float, flux: float) -> tuple[float, str]:
+    """The current the operating point takes (A, amplitude) and what it is: a PMSM's MTPA
+    current for T* (paper 002 eq 8, 10: FOC's reference there); an induction motor's as
+    rotor-field orientation asks it at T*, ψ* (i_d = ψ_r*/L_m, i_q = T*·L_r/(1.5 p L_m ψ_r*),
+    ψ_r* = (L_m/L_s)ψ*)."""
+    m = sc.plant.motor
+    if sc.machine == Machine.PMSM:
+        i_s = mtpa_point(torque, p=m.p, psi_f=m.psi_f, l_d=m.l_d, l_q=m.l_q).i_s
+        return i_s, f"the MTPA current for T* = {torque:g} N·m (paper 002 eq 8, 10)"
+    psi_r = m.l_m / m.l_s * flux
+    i = complex(psi_r / m.l_m, torque * m.l_r / (1.5 * m.p * m.l_m * psi_r))
+    return abs(i), (
+        f"the current rotor-field orientation asks at T* = {torque:g} N·m, psi* = {flux:g} Wb"
+    )
+
+
+#: what a finite-control-set PMSM family without the ``prediction`` choice predicts with
+FROZEN_ONLY = "frozen_rotor (the family has no other)"
+
+
+def _prediction(sc: Scenario) -> str | None:
+    """The PMSM prediction the scenario's controller runs with: its ``prediction`` where its
+    family has the choice, paper 001's frozen rotor for a finite-control-set family without it,
+    None for any other (a field-oriented or an induction motor's family, a user's node)."""
+    value = getattr(sc.controller, "prediction", None)
+    if value is not None:
+        return str(value)
+    if sc.machine != Machine.PMSM or sc.controller is None or sc.family.startswith("foc"):
+        return None
+    return FROZEN_ONLY
+
+
+def prediction_setting(sc: Scenario) -> dict[str, Any]:
+    """What the fronts add to a curve's settings on scenario ``sc``: the rotor-motion
+    compensated prediction (:data:`~..reports.fronts.PREDICTION`) for a PMSM family whose
+    settings declare the choice (``prediction``); nothing for any other."""
+    if sc.machine != Machine.PMSM or sc.controller is None:
+        return {}
+    if "prediction" not in {f.name for f in dataclasses.fields(sc.controller)}:
+        return {}
+    return {"torque_controller.prediction": PREDICTION}
+
+
+def _curve_settings(curve: Curve, path: Path, text: str) -> dict[str, Any]:
+    """The settings the fronts add to a built-in curve's own (:func:`prediction_setting`)."""
+    if curve.external is not None:
+        return {}
+    return prediction_setting(load_scenario_text(text, str(path)))
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """An operating point's runs: per curve its cases; the scenario each curve's runs load
+    (one, the first, with its settings applied: what the curve reports)."""
+
+    name: str
+    op: OperatingPoint
+    cases: dict[str, list[Case]]
+    loaded: dict[str, Scenario]
+
+
+def _plans(study: Mapping[str, OperatingPoint], settings: dict[str, Any]) -> list[_Plan]:
+    """Per operating point, its cases by curve; every scenario the cases make is checked before
+    anything runs (a bad setting is refused naming the key)."""
     clash = sorted(set(settings) & set(KNOBS))
     if clash:
         raise ConfigError(
             f"--set {clash[0]}: the fronts study sweeps it itself (--lambda-sw, --lambda-u, "
-            f"--fsw-khz choose its values)"
+            f"--fsw-khz and --periods-us choose its values)"
         )
     plans = []
     for name, op in study.items():
-        by_scenario: dict[str, list[tuple[Curve, Case]]] = {}
+        cases: dict[str, list[Case]] = {}
+        loaded: dict[str, Scenario] = {}
         for c in op.curves:
-            for v in c.values:
-                case = Case(c.strategy, {**settings, **c.settings, c.knob: v})
-                by_scenario.setdefault(c.scenario, []).append((c, case))
-        for scenario, pairs in by_scenario.items():
-            path = resolve_scenario_path(scenario)
+            path = resolve_scenario_path(c.scenario)
             text = path.read_text(encoding="utf-8")
+            own = ["torque_controller"] if c.external is not None else []
+            extra = {**_curve_settings(c, path, text), **settings, **c.settings}
+            cases[c.name] = []
             seen = set()
-            for _, case in pairs:
+            for point in c.points():
+                point = {k: v for k, v in point.items() if v == v}  # NaN: the section's own
+                case = Case(c.strategy, {**extra, **point})
+                cases[c.name].append(case)
                 key = repr(sorted(case.settings.items()))
                 if key in seen:
-                    continue
+                    raise ConfigError(f"{c.name}: two runs with {dict(case.settings)}")
                 seen.add(key)
                 where = f"{path} with " + ", ".join(f"{k}={v}" for k, v in case.settings.items())
-                sc = load_scenario_text(apply_settings(text, case.settings, path), where)
-                sc.with_strategy(case.strategy)
+                sc = load_scenario_text(
+                    apply_settings(text, case.settings, path, own=own), where, own=own
+                )
+                if c.external is None:
+                    sc.with_strategy(case.strategy)
                 if not sc.plant.period_means:
                     raise ConfigError(
                         f"{where}: the fronts need plant.period_means: true (distortion "
                         f"between the samples)"
                     )
-        plans.append((name, op, by_scenario))
+                loaded.setdefault(c.name, sc)
+        plans.append(_Plan(name, op, cases, loaded))
     return plans
 
 
@@ -255,23 +472,38 @@ def reproduce_fronts(
     study: Mapping[str, OperatingPoint] = FRONTS,
 ) -> FrontsResult:
     """Run every curve of every operating point of ``study`` (in-process, on the local cores or
-    the Dask cluster of ``runner``) and compare the fronts. ``settings`` apply to every run
-    (e.g. a real drive's delay with its compensation); a shortened run (``runner.duration``)
-    clips the windows: a quick look, not the study."""
+    the Dask cluster of ``runner``; a controller of one's own through the ROS graph) and
+    compare the fronts. ``settings`` apply to every run (e.g. a real drive's delay with its
+    compensation); a shortened run (``runner.duration``) clips the windows: a quick look, not
+    the study."""
     settings = dict(settings or {})
     plans = _plans(study, settings)
     t0 = time.perf_counter()
     tables = []
-    for name, op, groups in plans:
-        rows: dict[tuple[str, float], Any] = {}
-        for scenario, pairs in groups.items():
-            cases = [
-                dataclasses.replace(case, bag=runner.bag(f"fronts_{name}_{curve.name}_{i}"))
-                for i, (curve, case) in enumerate(pairs)
-            ]
-            for (curve, case), row in zip(pairs, runner.runs(scenario, cases)):
-                rows[(curve.name, case.settings[curve.knob])] = row
-        tables.append(_table(name, op, rows))
+    for plan in plans:
+        rows: dict[tuple[str, int], Any] = {}
+        by_scenario: dict[tuple[str, str | None], list[tuple[Curve, int, Case]]] = {}
+        for c in plan.op.curves:
+            for i, case in enumerate(plan.cases[c.name]):
+                bag = runner.bag(
+                    f"fronts_{plan.name}_{c.name}_{i}".replace(" ", "_").replace(":", "-"),
+                    needed=c.external is not None,
+                )
+                by_scenario.setdefault((c.scenario, c.external), []).append(
+                    (c, i, dataclasses.replace(case, bag=bag))
+                )
+        for (scenario, command), group in by_scenario.items():
+            own = group[0][0].strategy.removeprefix(EXTERNAL_PREFIX) if command else None
+            done = runner.runs(
+                scenario,
+                [case for _, _, case in group],
+                names=[f"{plan.name} {c.name}" for c, _, _ in group],
+                external=None if command is None else {"torque_controller": command},
+                label=own,
+            )
+            for (c, i, _), row in zip(group, done):
+                rows[(c.name, i)] = row
+        tables.append(_table(plan, rows))
     out = FrontsResult(
         scenario=FRONTS_STUDY,
         engine=runner.where,
@@ -281,8 +513,9 @@ def reproduce_fronts(
         "operating point, FOC + SVPWM the baseline",
         how=_HOW,
         frequencies=COMMON_FSW,
+        tolerance=dict(TOLERANCE),
         points=tables,
-        runs=sum(len(pairs) for _, _, groups in plans for pairs in groups.values()),
+        runs=sum(len(v) for p in plans for v in p.cases.values()),
         wall_s=time.perf_counter() - t0,
     )
     if figures is None:
@@ -293,35 +526,114 @@ def reproduce_fronts(
     return dataclasses.replace(out, figures=drawn)
 
 
-def _table(name: str, op: OperatingPoint, rows: Mapping[tuple[str, float], Any]) -> FrontTable:
-    t_ref = abs(load_scenario(op.curves[0].scenario).speed_pi_params.torque_values[-1])
-    curves = []
+_MISSED = {"torque": "mean torque", "flux": "mean |psi_s|", "current": "current's fundamental"}
+
+
+def _point(
+    c: Curve, case: Case, sc: Scenario, row: Any, refs: tuple[float, float, float]
+) -> FrontPoint:
+    """A run's point: its figures, its misses of the operating point (T*, ψ*, the base current)
+    and whether it held it."""
+    m = row.metrics
+    torque, flux, base = refs
+    f = {k: float(getattr(m, k)) for k in SHOWN if k != "i_tdd_cont"}
+    f["i_tdd_cont"] = f_tdd = m.i_distortion_cont / base
+    if f_tdd != f_tdd:
+        f["i_tdd_cont"] = math.nan
+    misses = {
+        "torque": m.t_mean_error_cont / torque,
+        "flux": m.psi_mean_error_cont / flux,
+        "current": m.i_fundamental_cont / base - 1.0,
+    }
+    lost = [
+        f"{_MISSED[k]} {100 * v:+.2f} %"
+        for k, v in misses.items()
+        if not abs(v) <= TOLERANCE[k]  # NaN: not measured, not held
+    ]
+    reason = ""
+    if lost:
+        reason = "left the operating point: " + ", ".join(lost) + " (tolerance " + ", ".join(
+            f"{100 * TOLERANCE[k]:g} %" for k in TOLERANCE
+        ) + ")"  # fmt: skip
+    ts = float(case.settings.get("ts", sc.ts))
+    value = float(case.settings.get(c.knob, math.nan)) if c.knob != "ts" else ts
+    return FrontPoint(value, ts, f, misses, not lost, reason, {}, row.wall_s)
+
+
+def _table(plan: _Plan, rows: Mapping[tuple[str, int], Any]) -> FrontTable:
+    op = plan.op
+    first = plan.loaded[op.curves[0].name]
+    torque = abs(first.speed_pi_params.torque_values[-1])
+    flux = first.speed_pi_params.flux_ref
+    base, base_text = _base_current(first, torque, flux)
+    curves, excluded = [], []
     for c in op.curves:
-        figs = []
-        for v in c.values:
-            m = rows[(c.name, v)].metrics
-            f = {k: float(getattr(m, k)) for k in SHOWN}
-            miss = math.sqrt(max(0.0, f["t_rmse_cont"] ** 2 - f["t_ripple_cont"] ** 2))
-            figs.append((v, f, miss <= HOLD_SHARE * t_ref, rows[(c.name, v)].wall_s))
+        sc = plan.loaded[c.name]
+        raw = [
+            _point(c, case, sc, rows[(c.name, i)], (torque, flux, base))
+            for i, case in enumerate(plan.cases[c.name])
+        ]
         fronts = {
             key: pareto(
-                [(f["f_sw_hz"], f[key]) if ok else (math.nan, math.nan) for _, f, ok, _ in figs]
+                [
+                    (p.figures["f_sw_hz"], p.figures[key]) if p.holds else (math.nan,) * 2
+                    for p in raw
+                ]  # fmt: skip
             )
             for key in RANKED
         }
         points = [
-            FrontPoint(v, f, ok, {k: fronts[k][i] for k in RANKED}, wall)
-            for i, (v, f, ok, wall) in enumerate(figs)
+            dataclasses.replace(p, on_front={k: fronts[k][i] for k in RANKED})
+            for i, p in enumerate(raw)
         ]
-        curves.append(FrontCurve(c.name, c.strategy, c.scenario, c.knob, c.settings, points))
-    at = {
-        key: {c.name: [interpolate(c.front(key), f) for f in COMMON_FSW] for c in curves}
-        for key in RANKED
-    }
+        excluded += [
+            Excluded(c.name, p.value, p.ts, p.figures["f_sw_hz"], p.misses, p.reason)
+            for p in points
+            if not p.holds
+        ]
+        curves.append(
+            FrontCurve(
+                c.name,
+                c.strategy,
+                c.scenario,
+                c.knob,
+                c.settings,
+                points,
+                _prediction(sc),
+                c.external,
+            )  # fmt: skip
+        )
+    at: dict[str, dict[str, list[float | None]]] = {}
+    miss_at: dict[str, dict[str, list[float | None]]] = {}
+    for key in RANKED:
+        at[key], miss_at[key] = {}, {}
+        for fc in curves:
+            at[key][fc.name], miss_at[key][fc.name] = _read(fc, key)
     ranking = {key: [_ranked(at[key], i) for i in range(len(COMMON_FSW))] for key in RANKED}
     return FrontTable(
-        name, op.caption, curves, at, ranking, op.papers_ranking, op.papers_source, t_ref
-    )
+        plan.name, op.caption, curves, at, miss_at, ranking, op.papers_ranking,
+        op.papers_source, torque, flux, base, base_text, excluded,
+    )  # fmt: skip
+
+
+def _read(c: FrontCurve, key: str) -> tuple[list[float | None], list[float | None]]:
+    """The curve's front of ``key`` at the common frequencies, and the mean torque's miss
+    there (read the same way, linear in the mix)."""
+    front = c.front(key)
+    pairs = [(p.figures["f_sw_hz"], p.figures[key]) for p in front]
+    values: list[float | None] = []
+    misses: list[float | None] = []
+    for f in COMMON_FSW:
+        r = reading(pairs, f)
+        if r is None:
+            values.append(None)
+            misses.append(None)
+            continue
+        i, j, s = r
+        values.append(interpolate(pairs, f))
+        a, b = front[i].misses["torque"], front[j].misses["torque"]
+        misses.append(a + s * (b - a))
+    return values, misses
 
 
 def _ranked(values: Mapping[str, list[float | None]], i: int) -> list[str]:

@@ -40,7 +40,7 @@ from ..reports.realism import (
 from ..reports.robustness import DEFAULT_DRAWS, DEFAULT_SEED
 from .compare import compare
 from .controller_replay import controller_replay
-from .fronts import FRONTS_STUDY, FrontsResult, reproduce_fronts, with_knob_values
+from .fronts import FRONTS_STUDY, FrontsChoice, FrontsResult, reproduce_fronts
 from .robustness import (
     ROBUSTNESS_STUDY,
     RobustnessResult,
@@ -279,10 +279,8 @@ def reproduce(
     figures: str | Path | None = None,
     settings: dict[str, Any] | None = None,
     scheduler: str | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    lambda_sw: Sequence[float] | None = None,
-    fsw_khz: Sequence[float] | None = None,
-    lambda_u: Sequence[float] | None = None,
+    progress: Callable[..., None] | None = None,
+    fronts: FrontsChoice | None = None,
     draws: int | None = None,
     seed: int | None = None,
     points: Sequence[str] | None = None,
@@ -295,11 +293,11 @@ def reproduce(
     paper's). ``figures``: a folder for the runs drawn overlaid (PNG). ``settings``: scenario
     settings applied to every run (e.g. ``{"speed_pi.speed_loop": "immediate"}``), besides each
     row's own. ``out_root``: keep every run's bag in this folder (None: the bags a study needs
-    go to a temporary folder, removed at the end). ``progress(done, planned)``: told as each
-    run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) takes its knobs' values from
-    ``lambda_sw``, ``lambda_u`` and ``fsw_khz`` where given; the robustness study
-    (:func:`~.robustness.reproduce_robustness`) draws ``draws`` drives by ``seed`` at
-    ``points`` (None: all), ``spreads`` replacing or adding to each point's."""
+    go to a temporary folder, removed at the end). ``progress(done, planned[, name])``: told as
+    each run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) runs what ``fronts``
+    chooses of it (its knobs' values, points, curves, a controller of one's own); the
+    robustness study (:func:`~.robustness.reproduce_robustness`) draws ``draws`` drives by
+    ``seed`` at ``points`` (None: all), ``spreads`` replacing or adding to each point's."""
     settings = dict(settings or {})
     robust = (draws, seed, points)
     if scenario != ROBUSTNESS_STUDY and (any(x is not None for x in robust) or spreads):
@@ -307,10 +305,11 @@ def reproduce(
             f"reproduce {scenario}: --draws, --seed, --points and --spread choose the "
             f"robustness study's drives"
         )
-    if scenario != FRONTS_STUDY and any(x is not None for x in (lambda_sw, fsw_khz, lambda_u)):
+    if scenario != FRONTS_STUDY and fronts is not None and fronts != FrontsChoice():
         raise ConfigError(
-            f"reproduce {scenario}: --lambda-sw, --lambda-u and --fsw-khz choose the fronts "
-            f"study's knobs"
+            f"reproduce {scenario}: --lambda-sw, --lambda-u, --fsw-khz, --periods-us, --points, "
+            f"--curves, --no-horizons, --external, --label and --knob choose the fronts study's "
+            f"runs"
         )
     if scenario in STUDIES:
         if engine != "inprocess":
@@ -329,7 +328,7 @@ def reproduce(
             f"{', '.join([*PAPER_TABLES, *MTPA_STUDIES, *STUDIES])}"
         )
     if scenario == FRONTS_STUDY:  # its knobs, checked before anything runs
-        fronts = with_knob_values(FRONTS, lambda_sw=lambda_sw, fsw_khz=fsw_khz, lambda_u=lambda_u)
+        study = (fronts or FrontsChoice()).study(FRONTS)
     if scenario == ROBUSTNESS_STUDY:
         chosen = robustness_points(points, spreads)
     check_output_dir(figures, option="--figures")  # before the work, not after it
@@ -354,7 +353,7 @@ def reproduce(
             )
             return dataclasses.replace(result_r, windows=runner.windows, bags=runner.kept())
         if scenario == FRONTS_STUDY:
-            result = reproduce_fronts(runner, figures=figures, settings=settings, study=fronts)
+            result = reproduce_fronts(runner, figures=figures, settings=settings, study=study)
         elif scenario == REALISM_STUDY:
             result = reproduce_realism(runner, figures=figures, settings=settings)
         elif scenario in MTPA_STUDIES:

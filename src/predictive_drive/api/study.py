@@ -15,7 +15,7 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,9 +76,10 @@ class Reproduction:
 class StudyRuns:
     """How a study's runs are made and what they tell. ``folder``: where the bags go — the
     user's (``keep``), or a temporary one removed when the study ends; ``progress(done,
-    planned)``: told as each case ends, counted across all the study's sweeps (``planned``
-    grows as each sweep starts); ``windows``: each scenario's metrics windows the runs used
-    (the scenario's, cut by ``duration``)."""
+    planned[, name])``: told as each case ends, counted across all the study's sweeps
+    (``planned`` grows as each sweep starts), with what the case was where the study names
+    it; ``windows``: each scenario's metrics windows the runs used (the scenario's, cut by
+    ``duration``)."""
 
     folder: Path
     keep: bool
@@ -86,7 +87,7 @@ class StudyRuns:
     duration: float | None = None
     jobs: int | None = None
     scheduler: str | None = None
-    progress: Callable[[int, int], None] | None = None
+    progress: Callable[..., None] | None = None
     #: ``local (N processes)``, ``dask (ADDRESS, N workers)`` or the ROS engine's name
     where: str = ""
     planned: int = 0
@@ -112,21 +113,33 @@ class StudyRuns:
         *,
         analysis: Analysis | None = None,
         failures: bool = False,
+        names: Sequence[str] | None = None,
+        external: Mapping[str, str] | None = None,
+        label: str | None = None,
     ) -> list[Row]:
         """The cases, each recorded to its bag if it names one: a sweep across the cores or the
         cluster (in-process), or one graph at a time (a ROS engine, which uses the cores
-        already). A failed case fails the study, naming it (``failures``: a case's own failure
-        is a row with its error, for a study that counts them, as over drawn drives; a worker
-        that died still fails the study)."""
+        already; and nodes of the user's own, ``external`` as ``run --external`` takes them,
+        ``label`` naming their torque controller). ``names``: what each case is, told to the
+        progress as it ends. A failed case fails the study, naming it (``failures``: a case's
+        own failure is a row with its error, for a study that counts them, as over drawn
+        drives; a worker that died still fails the study)."""
         before = self.done
         self.planned += len(cases)
+        last = [""]
+
+        def ended(i: int) -> None:
+            last[0] = names[i] if names is not None else ""
 
         def finished(k: int, n: int) -> None:
             self.done = before + k
             if self.progress is not None:
-                self.progress(self.done, self.planned)
+                if last[0]:
+                    self.progress(self.done, self.planned, last[0])
+                else:
+                    self.progress(self.done, self.planned)
 
-        if self.engine == "inprocess":
+        if self.engine == "inprocess" and not external:
             result = run_cases(
                 scenario,
                 cases,
@@ -135,18 +148,22 @@ class StudyRuns:
                 jobs=self.jobs,
                 analysis=analysis,
                 progress=finished,
+                finished=ended,
             )
             if result.interrupted:
                 raise self.interrupted(before + len(result.rows), result.cut)
             rows, self.where = result.rows, result.engine
         else:
-            rows, self.where = [], self.engine
+            rows = []
+            if not external:
+                self.where = self.engine
             for i, c in enumerate(cases):
                 try:
-                    rows.append(self._graph_run(scenario, c, analysis))
+                    rows.append(self._graph_run(scenario, c, analysis, external, label))
                 except Interrupted as e:  # the run's own report: where its bag is, what it holds
                     cut = [str(e).removeprefix("interrupted: ")]
                     raise self.interrupted(before + i, cut) from None
+                ended(i)
                 finished(i + 1, len(cases))
         for row in rows:
             if failures and row.error and not row.error.startswith(WORKER_ENDED):
@@ -161,12 +178,27 @@ class StudyRuns:
                 self.windows[scenario].append(window)
         return rows
 
-    def _graph_run(self, scenario: str, c: Case, analysis: Analysis | None) -> Row:
+    def _graph_run(
+        self,
+        scenario: str,
+        c: Case,
+        analysis: Analysis | None,
+        external: Mapping[str, str] | None = None,
+        label: str | None = None,
+    ) -> Row:
         with tempfile.TemporaryDirectory() as tmp:
-            path = scenario_with(scenario, c.settings, Path(tmp))
-            r = run(
-                path, strategy=c.strategy, engine=self.engine, out=c.bag, duration=self.duration
-            )
+            own = list(external or ())
+            path = scenario_with(scenario, c.settings, Path(tmp), own=own)
+            if external:
+                r = run(
+                    path, engine="ros", out=c.bag, duration=self.duration, external=external,
+                    label=label,
+                )  # fmt: skip
+            else:
+                r = run(
+                    path, strategy=c.strategy, engine=self.engine, out=c.bag,
+                    duration=self.duration,
+                )  # fmt: skip
         ev = evaluate(r.bag)
         extra = analysis(ev.trace, ev.scenario) if analysis is not None else {}
         return Row(c.strategy, c.settings, ev.metrics, None, r.wall_s, c.bag, extra)

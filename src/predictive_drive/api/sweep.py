@@ -323,10 +323,12 @@ def run_cases(
     jobs: int | None = None,
     analysis: Analysis | None = None,
     progress: Callable[[int, int], None] | None = None,
+    finished: Callable[[int], None] | None = None,
 ) -> SweepResult:
     """Run ``cases`` of ``scenario`` on the local cores or the Dask cluster at ``scheduler``.
     Settings are applied and checked here first: a key the scenario lacks fails the sweep
-    before anything runs; a value the scenario refuses is that case's error row."""
+    before anything runs; a value the scenario refuses is that case's error row.
+    ``finished(i)``: told which case (its index) ended, before ``progress``."""
     path = resolve_scenario_path(scenario)
     text = path.read_text(encoding="utf-8")
     where = str(path)
@@ -354,6 +356,8 @@ def run_cases(
         try:
             for fut in cf.as_completed(futures):
                 done[futures[fut]] = _row_of(fut, cases[futures[fut]])
+                if finished is not None:
+                    finished(futures[fut])
                 if progress is not None:
                     progress(len(done), len(cases))
         except KeyboardInterrupt:

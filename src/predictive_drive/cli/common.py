@@ -76,7 +76,7 @@ def progress(
 
     bar: dict[str, Any] = {}
 
-    def update(k: int, n: int) -> None:
+    def update(k: int, n: int, name: str = "") -> None:
         if "bar" not in bar:
             bar["bar"] = tqdm(
                 total=n, unit=unit, unit_scale=unit == "step", file=sys.stderr, leave=False
@@ -84,6 +84,8 @@ def progress(
         b = bar["bar"]
         if b.total != n:
             b.total = n
+        if name:
+            b.set_postfix_str(name, refresh=False)
         b.update(k - b.n)
 
     def close() -> None:
@@ -96,18 +98,20 @@ def progress(
 def runs_progress(
     what: str, *, quiet: bool
 ) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
-    """``(update(done, planned), close())`` for a verb that makes many runs (``sweep``,
-    ``reproduce``), on stderr: a bar on a terminal; elsewhere (a log, a pipe) a line per finished
-    run, ``what: run 2 of 3 done (14.2 s)``; nothing when ``quiet`` (``--json``)."""
+    """``(update(done, planned[, name]), close())`` for a verb that makes many runs (``sweep``,
+    ``reproduce``), on stderr: a bar on a terminal (``name``, what the run that ended was, beside
+    it); elsewhere (a log, a pipe) a line per finished run, ``what: run 2 of 3 done (14.2 s)``
+    and ``: name`` where one is told; nothing when ``quiet`` (``--json``)."""
     if quiet:
         return None, lambda: None
     if sys.stderr.isatty():
         return progress(True, unit="run")
     t0 = time.perf_counter()
 
-    def line(done: int, planned: int) -> None:
+    def line(done: int, planned: int, name: str = "") -> None:
         print(
-            f"{what}: run {done} of {planned} done ({time.perf_counter() - t0:.1f} s)",
+            f"{what}: run {done} of {planned} done ({time.perf_counter() - t0:.1f} s)"
+            + (f": {name}" if name else ""),
             file=sys.stderr,
             flush=True,
         )

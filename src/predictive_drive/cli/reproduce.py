@@ -4,8 +4,9 @@ realism study."""
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-from ..api.fronts import FRONTS_STUDY, FrontsResult
+from ..api.fronts import FRONTS_STUDY, FrontsChoice, FrontsResult
 from ..api.reproduce import (
     STUDIES,
     MTPAStudyResult,
@@ -15,7 +16,10 @@ from ..api.reproduce import (
 )
 from ..api.robustness import ROBUSTNESS_STUDY, RobustnessResult
 from ..api.run import ENGINES
-from ..core.metrics import METRICS
+from ..core.metrics import METRICS, Metric
+from ..errors import ConfigError
+from ..reports.fronts import FRONTS, PERIODS
+from ..reports.fronts import RANKED as FRONT_RANKED
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
 from ..reports.realism import RANKED, SHOWN
 from ..reports.robustness import DEFAULT_DRAWS, DEFAULT_SEED, ROBUSTNESS
@@ -80,6 +84,46 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "traced over (default 0.5,1,2,3,5,7,10,15,20)",
     )  # fmt: skip
     p.add_argument(
+        "--periods-us", metavar="T1,T2,...", type=_numbers_or_none,
+        help="fronts only: the control periods (µs) besides the papers' 50 every "
+        "finite-control-set curve also runs at, over its two smallest knob values (default "
+        + ",".join(f"{1e6 * t:g}" for t in PERIODS) + "; none: 50 µs alone)",
+    )  # fmt: skip
+    p.add_argument(
+        "--points", metavar="P1,P2", type=_names,
+        help=f"fronts and robustness: the operating points to run (default all; fronts: "
+        f"{', '.join(FRONTS)}; robustness: {', '.join(ROBUSTNESS)})",
+    )  # fmt: skip
+    p.add_argument(
+        "--curves", metavar="C1,C2", type=_names,
+        help="fronts only: the curves to run, by name (e.g. mptc,foc_im,'mptc N=2'; default "
+        "all: " + "; ".join(f"{n}: {', '.join(c.name for c in op.curves)}"
+                            for n, op in FRONTS.items()) + ")",
+    )  # fmt: skip
+    p.add_argument(
+        "--no-horizons", dest="horizons", action="store_false",
+        help="fronts only: without the long-horizon curves (N > 1), the study's slowest runs",
+    )  # fmt: skip
+    p.add_argument(
+        "--external", metavar="torque_controller=COMMAND",
+        help="fronts only: your own torque controller on the fronts of one operating point "
+        "(--points), run through the ROS graph on its MPTC scenario and drawn and ranked beside "
+        "ours with the same operating-point check (docs/ros.md, 'Your controller on the "
+        "fronts')",
+    )  # fmt: skip
+    p.add_argument(
+        "--label", metavar="NAME",
+        help="with --external: your controller's name, external:NAME in the table, figures "
+        "and bags (default torque_controller)",
+    )  # fmt: skip
+    p.add_argument(
+        "--knob", action="append", metavar="KEY=V1,V2,...", type=_knob,
+        help="with --external: what your controller is traced over, one of its own "
+        "parameters (torque_controller.NAME=V1,V2,...) and/or its period (ts=T1,T2,... s), "
+        "every value at every period (repeatable, once each; default: one run as its "
+        "section says)",
+    )  # fmt: skip
+    p.add_argument(
         "--jobs", type=int, help="realism, fronts, robustness: local processes (default: "
         "every core)",
     )  # fmt: skip
@@ -91,14 +135,54 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--seed", type=int, help=f"robustness only: seed of the draws (default {DEFAULT_SEED})"
     )
     p.add_argument(
-        "--points", metavar="A,B,...",
-        help=f"robustness only: the points to run (default all: {', '.join(ROBUSTNESS)})",
-    )  # fmt: skip
-    p.add_argument(
         "--spread", action="append", metavar="KEY=normal:S|uniform:S",
         help="robustness only: a parameter's spread, replacing a point's own for that key or "
         "added (repeatable)",
     )  # fmt: skip
+
+
+def _numbers_or_none(text: str) -> list[float]:
+    return [] if text.strip().lower() == "none" else _numbers(text)
+
+
+def _names(text: str) -> list[str]:
+    return [n.strip() for n in text.split(",") if n.strip()]
+
+
+def _knob(text: str) -> tuple[str, list[Any]]:
+    key, sep, values = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=V1,V2,..., got {text!r}")
+    out: list[Any] = []
+    for v in values.split(","):
+        try:
+            out.append(float(v))
+        except ValueError:
+            out.append(v.strip())
+    return key.strip(), out
+
+
+def _external(text: str | None) -> str | None:
+    if text is None:
+        return None
+    name, sep, command = text.partition("=")
+    if name != "torque_controller" or not sep or not command.strip():
+        raise ConfigError(
+            f"--external {text}: the fronts take a torque controller of your own with the "
+            f"command that starts it, torque_controller=COMMAND"
+        )
+    return command
+
+
+def _knobs(given: list[tuple[str, list[Any]]] | None) -> dict[str, list[Any]] | None:
+    if not given:
+        return None
+    out: dict[str, list[Any]] = {}
+    for key, values in given:
+        if key in out:
+            raise ConfigError(f"--knob {key}: given twice")
+        out[key] = values
+    return out
 
 
 def _numbers(text: str) -> list[float]:
@@ -121,13 +205,18 @@ def main(a: argparse.Namespace) -> int:
     if a.scenario != ROBUSTNESS_STUDY:
         refuse(
             a, f"chooses the robustness study's drives, not {a.scenario}'s",
-            "draws", "seed", "points", "spread",
+            "draws", "seed", "spread",
         )  # fmt: skip
+    if a.scenario not in (FRONTS_STUDY, ROBUSTNESS_STUDY):
+        refuse(a, f"chooses a study's operating points, not {a.scenario}'s", "points")
     if a.scenario != FRONTS_STUDY:
         refuse(
-            a, f"chooses the fronts study's knobs, not {a.scenario}'s",
-            "lambda_sw", "lambda_u", "fsw_khz",
+            a, f"chooses the fronts study's runs, not {a.scenario}'s",
+            "lambda_sw", "lambda_u", "fsw_khz", "periods_us", "curves", "external",
+            "label", "knob",
         )  # fmt: skip
+        if not a.horizons:
+            raise ConfigError(f"--no-horizons chooses the fronts study's runs, not {a.scenario}'s")
     settings = single_settings(a.set)
     update, close = runs_progress(f"reproduce {a.scenario}", quiet=a.json)
     try:
@@ -141,13 +230,24 @@ def main(a: argparse.Namespace) -> int:
             settings=settings,
             scheduler=a.scheduler,
             jobs=a.jobs,
-            lambda_sw=a.lambda_sw,
-            fsw_khz=a.fsw_khz,
-            lambda_u=a.lambda_u,
             draws=a.draws,
             seed=a.seed,
-            points=[s for s in a.points.split(",") if s] if a.points else None,
+            points=a.points if a.scenario == ROBUSTNESS_STUDY else None,
             spreads=a.spread or [],
+            fronts=FrontsChoice(
+                lambda_sw=a.lambda_sw,
+                lambda_u=a.lambda_u,
+                fsw_khz=a.fsw_khz,
+                periods_us=a.periods_us,
+                points=a.points,
+                curves=a.curves,
+                horizons=a.horizons,
+                external=_external(a.external),
+                label=a.label,
+                knobs=_knobs(a.knob),
+            )
+            if a.scenario == FRONTS_STUDY
+            else None,
             progress=update,
         )
     finally:
@@ -272,39 +372,57 @@ def print_realism(d: RealismResult) -> None:
 def print_fronts(d: FrontsResult) -> None:
     print(f"{d.scenario}: {d.paper}  ({d.engine}, {d.runs} runs, {d.wall_s:.0f} s)")
     _settings(d)
+    tol = d.tolerance
+    print(
+        f"holding the operating point: mean torque within {100 * tol['torque']:g} % of T*, mean "
+        f"|psi_s| within {100 * tol['flux']:g} % of psi*, the current's fundamental within "
+        f"{100 * tol['current']:g} % of the point's current"
+    )
     f_sw = METRICS["f_sw_hz"]
-    heads = "".join(f" {f_sw.format(f):>7} kHz" for f in d.frequencies)
+    heads = "".join(f" {f'{f / 1e3:g} kHz':>17}" for f in d.frequencies)
     for t in d.points:
         print()
         print(f"{t.point}: {t.caption}")
+        print(
+            f"  T* {t.torque_ref:g} N·m, psi* {t.flux_ref:g} Wb; the point's current "
+            f"{t.base_current_a:.4g} A ({t.base_current}): TDD's base"
+        )
         width = max(14, *(len(c.name) for c in t.curves)) + 1
         for c in t.curves:
-            print(f"  {c.name:<{width}} over {c.knob}")
+            said = f"  (prediction: {c.prediction})" if c.prediction else ""
+            own = f"  (your node: {c.external})" if c.external else ""
+            print(f"  {c.name:<{width}} over {c.knob}{said}{own}")
             for p in c.points:
-                marks = "".join(
-                    "*" if p.on_front[k] else " " for k in ("t_ripple_cont", "i_thd_cont")
-                )
+                marks = "".join("*" if p.on_front[k] else " " for k in FRONT_RANKED)
                 cells = " ".join(
                     f"{METRICS[k].heading} {METRICS[k].format(p.figures[k])}"
-                    for k in ("f_sw_hz", "t_ripple_cont", "i_thd_cont", "t_rmse_cont")
+                    for k in ("f_sw_hz", "t_ripple_cont", "t_rmse_cont", "i_thd_cont")
                 )
-                lost = "" if p.holds else "  (left the operating point)"
-                print(f"    {marks} {c.knob.rsplit('.', 1)[-1]} = {p.value:<8g} {cells}{lost}")
+                tdd = METRICS["i_tdd_cont"].format(p.figures["i_tdd_cont"])
+                value = "" if c.knob == "ts" else f" {c.knob.rsplit('.', 1)[-1]} = {p.value:<8g}"
+                print(
+                    f"    {marks} ts {1e6 * p.ts:>5g} µs{value} {cells} TDD {tdd} % "
+                    f"dT {100 * p.misses['torque']:+.2f} %" + ("" if p.holds else "  (off)")
+                )
         for key, ranked in t.ranking.items():
             metric = METRICS[key]
-            print(f"  {metric.heading:<{width}}{heads}")
+            print(f"  {metric.heading + ' (mean torque miss)':<{width + 2}}{heads}")
             for name, values in t.at[key].items():
-                cells = "".join(f" {metric.format(v):>11}" for v in values)
-                print(f"    {name:<{width - 2}}{cells}")
-            best = "".join(f" {(r[0] if r else '-'):>11}" for r in ranked)
-            print(f"    {'lowest':<{width - 2}}{best}")
+                misses = t.torque_miss_at[key][name]
+                cells = "".join(f" {_cell(metric, v, m):>17}" for v, m in zip(values, misses))
+                print(f"    {name:<{width}}{cells}")
+            best = "".join(f" {(r[0] if r else '-'):>17}" for r in ranked)
+            print(f"    {'lowest':<{width}}{best}")
         if t.papers_ranking:
             print(f"  papers' ranking ({t.papers_source}): " + " < ".join(t.papers_ranking))
-        for key, ranked in t.ranking.items():
-            for f, order in zip(d.frequencies, ranked):
-                if len(order) > 1:
-                    print(f"  {METRICS[key].title} at {f_sw.format(f)} kHz: " + " < ".join(order))
-    print("(* on the front of T_ripple, THD_i)")
+        if t.excluded:
+            print(f"  left the operating point ({len(t.excluded)} runs, not on the fronts):")
+            for e in t.excluded:
+                print(
+                    f"    {e.curve} ts {1e6 * e.ts:g} µs value {e.value:g} f_sw "
+                    f"{f_sw.format(e.f_sw_hz)} kHz: {e.reason}"
+                )
+    print(f"(* on the front of {', '.join(METRICS[k].title for k in FRONT_RANKED)})")
     print(f"How computed: {d.how}")
 
 
@@ -338,3 +456,9 @@ def print_robustness(d: RobustnessResult) -> None:
                     cells.append(f" {t.format(v) + ratio:>20}")
                 print(f"    {s:<20}" + "".join(cells))
     print(f"How computed: {d.how}")
+
+
+def _cell(metric: Metric, value: float | None, miss: float | None) -> str:
+    if value is None:
+        return "-"
+    return f"{metric.format(value)} ({100 * (miss or 0.0):+.1f} %)"

@@ -25,10 +25,14 @@ __all__ = [
     "EQUAL_FSW_SHARE",
     "METRICS",
     "Cycles",
+    "CurrentDistortion",
+    "continuous_current",
     "continuous_current_thd",
+    "continuous_mean_error",
     "continuous_ripple",
     "continuous_rmse",
     "loss_figures",
+    "fundamental_angle",
     "whole_cycles",
     "Metric",
     "Metrics",
@@ -185,6 +189,24 @@ class Metrics:
         description="current distortion over whole cycles of the THD window, continuous time, "
         "all three phases, over the fundamental",
     )  # fmt: skip
+    i_fundamental_cont: float = metric(
+        "I_1 cont", "A", fmt=".4g", default=math.nan,
+        description="the current's fundamental over whole cycles of the THD window, continuous "
+        "time, as a space-vector amplitude (a phase's peak)",
+    )  # fmt: skip
+    i_distortion_cont: float = metric(
+        "I_dist cont", "A", fmt=".4g", default=math.nan,
+        description="sqrt(mean|i_s - i_1|^2) over the THD window: what THD_i cont divides by "
+        "I_1 cont and a TDD by a reference current (same scale)",
+    )  # fmt: skip
+    t_mean_error_cont: float = metric(
+        "T_mean err cont", "N·m", default=math.nan,
+        description="mean(T_e - T*) over continuous time: how far the mean torque misses T*",
+    )  # fmt: skip
+    psi_mean_error_cont: float = metric(
+        "psi_mean err cont", "Wb", fmt=".5f", default=math.nan,
+        description="mean(|psi_s| - psi*) over continuous time",
+    )  # fmt: skip
 
     # -- losses and temperatures (docs/physics.md#losses-and-temperature): means over the window
     # of the plant's loss fields, NaN for a run without them ----------------------------------
@@ -252,6 +274,13 @@ class Metrics:
 METRICS: dict[str, Metric] = {
     **{f.name: f.metadata[_KEY] for f in dataclasses.fields(Metrics)},
     "zero_share": Metric("V0", "%", 100.0, ".1f", "share of steps choosing the zero vector"),
+    "i_tdd_cont": Metric(
+        "TDD_i cont",
+        "%",
+        100.0,
+        ".2f",
+        "I_dist cont over one reference current of the operating point (a study states it)",
+    ),  # fmt: skip
     "compute_us_per_step": Metric("compute", "µs/step", 1.0, ".2f", "median, control law only"),
     "compute_ratio": Metric(
         "compute ratio", "", 1.0, ".3f", "decision time relative to conventional MPTC"
@@ -373,7 +402,9 @@ def whole_cycles(trace: Trace, t_start: float, t_end: float, *, slips: bool = Fa
             f"THD window [{t_start}, {t_end}) s holds no whole electrical cycle "
             f"({turned[-1] / (2 * math.pi):.2f} turns)"
         )
-    n = int(np.searchsorted(turned, cycles * 2.0 * math.pi))  # first sample of the next cycle
+    # the first sample of the next cycle; one that lands on it to within rounding is it (a
+    # held synchronous machine whose cycles are whole periods)
+    n = int(np.searchsorted(turned, cycles * 2.0 * math.pi - 1e-9))
     return Cycles(k0, n, cycles, 1 if theta[-1] >= theta[0] else -1)
 
 
@@ -402,6 +433,14 @@ def continuous_rmse(trace: Trace, field: str, ref: str, k0: int, k1: int) -> flo
     return math.sqrt(max(0.0, v)) if v == v else math.nan
 
 
+def continuous_mean_error(trace: Trace, field: str, ref: str, k0: int, k1: int) -> float:
+    """mean over periods k0..k1-1 of (1/Ts)∫(x - x*) dt: how far the mean misses the reference
+    (signed), from the period means of x (NaN without them)."""
+    mean = trace.col("state", f"{field}_avg")[k0 + 1 : k1 + 1]
+    v = float(np.mean(mean - trace.col("reference", ref)[k0:k1]))
+    return v if v == v else math.nan
+
+
 def continuous_ripple(trace: Trace, field: str, k0: int, k1: int) -> float:
     """sqrt(mean x² - (mean x)²) over periods k0..k1-1 in continuous time, from the period
     means of x and x² (NaN without them)."""
@@ -411,21 +450,73 @@ def continuous_ripple(trace: Trace, field: str, k0: int, k1: int) -> float:
     return math.sqrt(max(0.0, v)) if v == v else math.nan
 
 
-def continuous_current_thd(trace: Trace, w: Cycles) -> float:
-    """The stator current's distortion over the whole cycles ``w``, continuous in time and all
-    three phases together: sqrt(mean |i_s|² - |I_1|²) / |I_1|, I_1 the fundamental space vector
-    found by a DFT of the period means of i_αβ at the fundamental (each period's mean of
-    e^{jωt} is e^{jω(t + Ts/2)}·sinc(ωTs/2): divided out). Everything but the fundamental counts
-    — every harmonic, the switching ripple at any frequency, a DC offset, a negative sequence —
-    each phase's distortion RMS over the fundamental's RMS."""
+@dataclass(frozen=True)
+class CurrentDistortion:
+    """The stator current over whole cycles of its fundamental, in continuous time
+    (:func:`continuous_current`): ``fundamental`` |I_1| and ``distortion`` sqrt(mean|i_s -
+    i_1|²), both as space-vector amplitudes (A; a phase's peak for a balanced fundamental), so
+    ``thd`` = distortion/fundamental is each phase's distortion RMS over its fundamental's RMS,
+    and a TDD divides ``distortion`` by a reference amplitude instead (:meth:`tdd`)."""
+
+    fundamental: float
+    distortion: float
+
+    @property
+    def thd(self) -> float:
+        return self.distortion / self.fundamental if self.fundamental > 0 else math.nan
+
+    def tdd(self, base: float) -> float:
+        """The distortion over ``base`` (A, an amplitude: the operating point's current)."""
+        return self.distortion / base
+
+
+def fundamental_angle(trace: Trace, w: Cycles, *, slips: bool = False) -> np.ndarray:
+    """The fundamental's angle (rad, unwrapped) at the samples k0..k0+n of ``w``: the rotor's
+    electrical angle θ_e for a synchronous machine; for an induction motor (``slips``) the
+    straight line fitted (least squares) to the stator flux's unwrapped angle, its ripple left
+    out."""
+    k0, n = w.k0, w.n
+    if not slips:
+        return np.unwrap(trace.truth("theta_e")[k0 : k0 + n + 1])
+    psi = trace.col("state", "psi_alpha") + 1j * trace.col("state", "psi_beta")
+    angle = np.unwrap(np.angle(psi[k0 : k0 + n + 1]))
+    steps = np.arange(n + 1, dtype=float)
+    slope, offset = np.polyfit(steps, angle, 1)
+    return np.asarray(offset + slope * steps)
+
+
+def continuous_current(trace: Trace, w: Cycles, *, slips: bool = False) -> CurrentDistortion:
+    """The stator current's fundamental and distortion over the whole cycles ``w``, continuous
+    in time, all three phases together (docs/physics.md#continuous-time-figures).
+
+    I_1 is the least-squares fit of one vector turning with the fundamental, I_1 = mean of
+    i_s·e^{-jθ_1(t)} over the window, taken from the plant's period means of the current in the
+    rotor's frame (``i_d_avg``, ``i_q_avg``): i_s·e^{-jθ_1} = i_r·e^{-jφ}, φ = θ_1 - θ_e the
+    angle the fundamental leads the rotor by — constant for a synchronous machine, turning at
+    the slip for an induction motor, whose period means of e^{-jφ} are e^{-jφ_mid}·sinc(Δφ/2)
+    (divided out). No line of the switching ripple folds onto the fundamental as it does in
+    period means of i_αβ (a period's mean is a sample of its mean: lines at m/Ts ± f_1 alias
+    onto f_1). Then distortion² = mean|i_s|² - |I_1|²: the power of everything but the
+    fundamental — harmonics, switching ripple at any frequency, DC, a negative sequence. NaN
+    without the period means (or from a recording made before the plant published them)."""
     sl = slice(w.k0 + 1, w.k0 + w.n + 1)  # the periods k0..k0+n-1
-    i = trace.col("state", "i_alpha_avg")[sl] + 1j * trace.col("state", "i_beta_avg")[sl]
+    r = trace.col("state", "i_d_avg")[sl] + 1j * trace.col("state", "i_q_avg")[sl]
     square = float(np.mean(trace.col("state", "current_sq_avg")[sl]))
-    half = math.pi * w.cycles / w.n  # ωTs/2
-    turn = np.exp(-1j * w.direction * 2.0 * half * np.arange(w.n))
-    fund = abs(complex(np.mean(i * turn))) / (math.sin(half) / half)
+    if not (np.isfinite(r).all() and math.isfinite(square)):
+        return CurrentDistortion(math.nan, math.nan)
+    lead = fundamental_angle(trace, w, slips=slips) - np.unwrap(
+        trace.truth("theta_e")[w.k0 : w.k0 + w.n + 1]
+    )
+    turn = np.diff(lead)  # Δφ over each period
+    mid = lead[:-1] + 0.5 * turn
+    fund = abs(complex(np.mean(r * np.exp(-1j * mid) / np.sinc(turn / (2.0 * math.pi)))))
     v = square - fund * fund
-    return math.sqrt(max(0.0, v)) / fund if v == v else math.nan
+    return CurrentDistortion(fund, math.sqrt(max(0.0, v)))
+
+
+def continuous_current_thd(trace: Trace, w: Cycles, *, slips: bool = False) -> float:
+    """:func:`continuous_current`'s THD: the distortion's RMS over the fundamental's."""
+    return continuous_current(trace, w, slips=slips).thd
 
 
 def compute_metrics(
@@ -486,20 +577,25 @@ def compute_metrics(
         t_rmse_cont=continuous_rmse(trace, "torque", "torque_ref", k0, k1),
         t_ripple_cont=continuous_ripple(trace, "torque", k0, k1),
         psi_rmse_cont=continuous_rmse(trace, "flux", "flux_ref", k0, k1),
+        t_mean_error_cont=continuous_mean_error(trace, "torque", "torque_ref", k0, k1),
+        psi_mean_error_cont=continuous_mean_error(trace, "flux", "flux_ref", k0, k1),
     )
     m = dataclasses.replace(m, **loss_figures(trace, k0, k1))
     if not thd_window:
         return m
     sp = phase_a_spectrum(trace, thd_window[0], thd_window[1], slips=slips)
+    cont = continuous_current(
+        trace, whole_cycles(trace, thd_window[0], thd_window[1], slips=slips), slips=slips
+    )
     return dataclasses.replace(
         m,
         thd=sp.thd,
         thd_harmonics=sp.thd_harmonics,
         thd_cycles=sp.cycles,
         thd_fundamental_hz=sp.fundamental_hz,
-        i_thd_cont=continuous_current_thd(
-            trace, whole_cycles(trace, thd_window[0], thd_window[1], slips=slips)
-        ),
+        i_thd_cont=cont.thd,
+        i_fundamental_cont=cont.fundamental,
+        i_distortion_cont=cont.distortion,
     )
 
 

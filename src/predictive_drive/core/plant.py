@@ -16,9 +16,10 @@ temperatures they lead to; the devices' on-state voltages are then the drops of 
 (one model of a conducting device), and its R_s, R_r, ψ_f follow the machine's temperatures.
 
 With ``period_means`` the state also carries what happened between the samples: the means of the
-torque, the flux magnitude and the current over the period that ended at k, and of their squares
-(:data:`PERIOD_MEANS`; NaN without it). They are integrated over every sub-step of every segment
-(:meth:`InverterPlant._piece`), so the ripple a carrier hides from samples taken at its period's
+torque, the flux magnitude and the current over the period that ended at k, of their squares and
+of the current in the rotor's frame (:data:`PERIOD_MEANS`; NaN without it). They are integrated
+over every sub-step of every segment (:meth:`InverterPlant._piece`), so the ripple a carrier
+hides from samples taken at its period's
 boundaries is counted (docs/physics.md#continuous-time-figures). They change nothing of the
 trajectory: the sub-steps are the ones the integrator takes anyway, bit for bit.
 """
@@ -70,6 +71,8 @@ PERIOD_MEANS = (
     "i_alpha_avg",
     "i_beta_avg",
     "current_sq_avg",
+    "i_d_avg",
+    "i_q_avg",
 )
 #: (T_e, |ψ_s|, i_s in the rotor frame, θ_e unwrapped, e^{jθ_e}) at one instant
 Point = tuple[float, float, complex, float, complex]
@@ -186,12 +189,15 @@ class InverterPlant:
         self._avg: tuple[float, ...] = (math.nan,) * len(PERIOD_MEANS)
         self._sums = [0.0, 0.0, 0.0, 0.0, 0.0]  #: ∫T, ∫T², ∫|ψ|, ∫|ψ|², ∫|i|² (× 2, 3, 2, 3, 3)
         self._sum_i = 0j  #: ∫i_αβ dt
+        self._sum_r = 0j  #: ∫i dt in the rotor frame (× 2)
         self._means = period_means
         if period_means:
             self._at = self._point(self.x)  #: the :data:`Point` where the next piece starts
             te, psi, i_r, _, rot = self._at
             i = i_r * rot
-            self._avg = (te, te * te, psi, psi * psi, i.real, i.imag, abs(i) ** 2)
+            self._avg = (
+                te, te * te, psi, psi * psi, i.real, i.imag, abs(i) ** 2, i_r.real, i_r.imag
+            )  # fmt: skip
 
     def _point(self, x: tuple[Any, ...]) -> Point:
         """The :data:`Point` of state ``x``: what the period means are taken of."""
@@ -246,7 +252,7 @@ class InverterPlant:
         dt = h / n  # what the integrator's own loop would take: the same floats
         integrate, coef, point, sums = self._integrate, self._coef, self._point, self._sums
         te0, f0, i0, th0, rot0 = self._at
-        sum_i = self._sum_i
+        sum_i, sum_r = self._sum_i, self._sum_r
         for _ in range(n):
             x = integrate(0.0, x, u, coef, dt, 1)
             te1, f1, i1, th1, rot1 = point(x)
@@ -264,13 +270,14 @@ class InverterPlant:
                 e0 = (e - 1.0) / complex(0.0, phi)
                 e1 = e / complex(0.0, phi) + (e - 1.0) / q
             sum_i += dt * rot0 * (i0 * e0 + (i1 - i0) * e1)
+            sum_r += dt * (i0 + i1)
             sums[4] += dt * (
                 i0.real * (i0.real + i1.real) + i0.imag * (i0.imag + i1.imag)
                 + i1.real * i1.real + i1.imag * i1.imag
             )  # fmt: skip
             te0, f0, i0, th0, rot0 = te1, f1, i1, th1, rot1
         self._at = (te0, f0, i0, th0, rot0)
-        self._sum_i = sum_i
+        self._sum_i, self._sum_r = sum_i, sum_r
         return x
 
     def _advance(self, x: tuple[Any, ...], u: Any, h: float) -> tuple[Any, ...]:
@@ -289,12 +296,13 @@ class InverterPlant:
         """The sums of the period just integrated → its means (:data:`PERIOD_MEANS`)."""
         s = self._sums
         half, third = 0.5 / self.ts, 1.0 / (3.0 * self.ts)
-        i = self._sum_i / self.ts
+        i, r = self._sum_i / self.ts, self._sum_r * half
         self._avg = (
-            s[0] * half, s[1] * third, s[2] * half, s[3] * third, i.real, i.imag, s[4] * third
+            s[0] * half, s[1] * third, s[2] * half, s[3] * third, i.real, i.imag, s[4] * third,
+            r.real, r.imag,
         )  # fmt: skip
         self._sums = [0.0, 0.0, 0.0, 0.0, 0.0]
-        self._sum_i = 0j
+        self._sum_i = self._sum_r = 0j
 
     def _i_ab(self, x: tuple[Any, ...]) -> complex:
         """The stator current in αβ of state ``x``."""

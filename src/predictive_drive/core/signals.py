@@ -73,6 +73,10 @@ class State(NamedTuple):
     i_alpha_avg: float  #: mean stator current α, A
     i_beta_avg: float  #: mean stator current β, A
     current_sq_avg: float  #: mean of |i_s|² = i_α² + i_β², A²
+    #: mean stator current in the rotor's frame (turned back by θ_e), d and q, A: where a
+    #: synchronous machine's fundamental stands still (an induction motor's turns at the slip)
+    i_d_avg: float
+    i_q_avg: float
     # losses and temperatures (docs/physics.md#losses-and-temperature; NaN unless the plant's
     # losses are on): power means over the period that ended at k (W), temperatures at k (°C)
     p_dc: float  #: DC-link power u_dc·i_dc of the plant's equations (switching, iron not in it)

@@ -382,47 +382,70 @@ def robustness_figures(
     return figs
 
 
-#: the figures a front is drawn of (metric keys), against f_sw
-FRONT_METRICS = ("t_ripple_cont", "i_thd_cont")
+#: each curve of a fronts figure its own colour and marker (up to 16 curves an operating point)
+CURVE_COLOURS = (
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf", "#000000", "#d4a017", "#008080", "#000080", "#ff00ff", "#32cd32",
+)  # fmt: skip
+CURVE_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h", "p", "d", "8", "H", "+")
 
 
 def fronts_figures(result: Any) -> dict[str, Any]:
     """One figure per operating point of a fronts study (``result.points``, each with
-    ``point``, ``caption`` and ``curves`` of ``points``): a panel per figure of
-    :data:`FRONT_METRICS` against f_sw, log axes; per curve its points (hollow where the run
-    left the operating point) and its front as a line (dashed for field-oriented control)."""
+    ``point``, ``caption`` and ``curves`` of ``points``): a panel per ranked figure (the
+    torque's ripple about its mean and against T*, the current's THD and TDD) against f_sw, log
+    axes; per curve, in its own colour and marker, its points (hollow where the run left the
+    operating point) and its front as a line (dashed for field-oriented control) drawn only
+    between the neighbours the table reads between (:func:`~.fronts.joined`): no line
+    across a gap it leaves blank."""
+    from .fronts import joined
+
     plt = _pyplot()
     figs: dict[str, Any] = {}
     f_sw = METRICS["f_sw_hz"]
+    keys = tuple(result.points[0].at) if result.points else ()
     for table in result.points:
-        fig, axes = plt.subplots(1, len(FRONT_METRICS), figsize=(11, 4.2))
-        for ax, key in zip(np.atleast_1d(axes), FRONT_METRICS):
+        fig, axes = plt.subplots(2, (len(keys) + 1) // 2, figsize=(12, 8.5), squeeze=False)
+        for ax, key in zip(axes.flat, keys):
             shown = METRICS[key]
-            for curve in table.curves:
+            for i, curve in enumerate(table.curves):
+                style = {
+                    "color": CURVE_COLOURS[i % len(CURVE_COLOURS)],
+                    "marker": CURVE_MARKERS[i % len(CURVE_MARKERS)],
+                }
                 held = [p for p in curve.points if p.holds]
                 lost = [p for p in curve.points if not p.holds]
-                xs = [f_sw.scale * p.figures["f_sw_hz"] for p in held]
-                ys = [shown.scale * p.figures[key] for p in held]
-                (line,) = ax.plot(xs, ys, "o", markersize=4, label=curve.name)
-                front = curve.front(key)
                 ax.plot(
-                    [f_sw.scale * f for f, _ in front],
-                    [shown.scale * v for _, v in front],
-                    "--" if curve.strategy.startswith(("foc", "ifoc")) else "-",
-                    color=line.get_color(),
-                )
+                    [f_sw.scale * p.figures["f_sw_hz"] for p in held],
+                    [shown.scale * p.figures[key] for p in held],
+                    ls="none", markersize=5, label=curve.name, **style,
+                )  # fmt: skip
                 if lost:
                     ax.plot(
                         [f_sw.scale * max(p.figures["f_sw_hz"], 1.0) for p in lost],
                         [shown.scale * p.figures[key] for p in lost],
-                        "o", mfc="none", color=line.get_color(), markersize=4,
+                        ls="none", mfc="none", markersize=5, alpha=0.6, **style,
                     )  # fmt: skip
+                front = [(p.figures["f_sw_hz"], p.figures[key]) for p in curve.front(key)]
+                dashed = "--" if curve.strategy.startswith(("foc", "ifoc")) else "-"
+                for a, b in zip(front, front[1:]):
+                    if joined(a, b):
+                        ax.plot(
+                            [f_sw.scale * a[0], f_sw.scale * b[0]],
+                            [shown.scale * a[1], shown.scale * b[1]],
+                            dashed, color=style["color"], lw=1.2,
+                        )  # fmt: skip
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set(xlabel=f_sw.axis, ylabel=shown.axis)
             ax.grid(True, which="both", alpha=0.3)
-        np.atleast_1d(axes)[0].legend(fontsize=7)
-        fig.suptitle(table.caption, fontsize=9)
+        for ax in list(axes.flat)[len(keys) :]:
+            ax.set_visible(False)
+        axes.flat[0].legend(fontsize=7, ncol=2)
+        fig.suptitle(
+            f"{table.caption}; hollow: left the operating point; lines: the fronts",
+            fontsize=9,
+        )
         fig.tight_layout()
         figs[table.point] = fig
     return figs

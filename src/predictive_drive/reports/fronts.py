@@ -1,56 +1,94 @@
 """The fronts study (``predictive-drive reproduce fronts``;
 docs/reproduction.md#fronts-distortion-against-switching-frequency): each strategy's distortion
 against its switching frequency at a steady operating point, traced over its switching-effort
-knob, with field-oriented control and SVPWM as the baseline on the same machine and point — the
-comparison power electronics accepts (Geyer & Quevedo, IEEE TPEL 2014, 2015; Karamanakos et al.).
+knob and its control period, with field-oriented control and SVPWM as the baseline on the same
+machine and point — the comparison power electronics accepts (Geyer & Quevedo, IEEE TPEL 2014,
+2015; Karamanakos et al.).
 
-A study is data: per operating point its two scenarios (the MPTC family's and the FOC twin's, the
+A study is data: per operating point its scenarios (the MPTC family's and the FOC twin's, the
 same drive: ``test_a_steady_point_is_the_same_drive_for_mptc_and_field_orientation``) and its
 curves, each a strategy with the setting it is traced over and the values. Knobs:
 
 - the finite-control-set strategies, the deadbeat ones too, over ``torque_controller.lambda_sw``
-  at the papers' control period: they choose among the inverter's vectors each period, and the
-  weight on commutations is what trades their distortion against switching (the deadbeat duty
-  is part of the choice, not a carrier of its own);
+  (direct_mpc over its ``lambda_u``): at the papers' period, 50 µs, over the curve's values, and
+  at :data:`PERIODS` — 20 to 500 µs, about 1.6 times apart — over its :data:`PERIOD_VALUES`
+  smallest (the papers' law, λ = 0, and the next): the period sets how often the law may switch
+  at all, the weight how much of that it uses, so the front reaches from about 2.5 times to a
+  tenth of the papers' rate (roughly 0.5-10 kHz);
 - field-oriented control over the control period ``ts``, which is its carrier period (f_sw =
-  1/Ts), its current loop tuned at every period by the technical optimum (kp = L/(2·1.5·Ts));
+  1/Ts), its current loop tuned at every period by the technical optimum (kp = L/(2·1.5·Ts)) and
+  holding the period's mean current (``current_target: period_mean``,
+  docs/physics.md#field-oriented-control-and-mtpa);
 - the long horizons (mptc at N = 2, 3, 5 over λ_sw; direct_mpc at N = 1, 3, 5, 10 over its
   switching weight λ_u), one curve per N.
 
-The values reach from the papers' law (λ_sw = 0) to where the drive stops following the
-operating point, and for FOC from 0.5 to 20 kHz.
+A point is on a front only if it holds the operating point: its mean torque within
+:data:`TOLERANCE` of T*, its mean |ψ_s| of ψ* and its current's fundamental of the operating
+point's current (the base of the TDD), all in continuous time.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
     "COMMON_FSW",
-    "FRONTS",
-    "HOLD_SHARE",
-    "KNOBS",
     "DIRECT_HORIZONS",
+    "FRONTS",
+    "KNOBS",
     "MAX_GAP",
+    "MAX_SLOPE",
     "MPTC_HORIZONS",
+    "PAPERS_TS",
+    "PERIODS",
+    "PERIOD_VALUES",
+    "PREDICTION",
     "RANKED",
     "SHOWN",
+    "SNAP_SHARE",
+    "TOLERANCE",
     "Curve",
     "OperatingPoint",
+    "interpolate",
+    "joined",
+    "pareto",
+    "reading",
 ]
 
-#: the switching frequencies the table interpolates each front at, Hz
-COMMON_FSW = (1e3, 2e3, 3e3, 4e3, 5e3, 7e3, 10e3)
-#: the figures of every point (metric keys), and those the fronts are drawn and ranked by
-SHOWN = ("f_sw_hz", "t_ripple_cont", "i_thd_cont", "t_rmse_cont", "psi_rmse_cont", "t_rmse")
-RANKED = ("t_ripple_cont", "i_thd_cont")
-#: a point whose mean torque misses T* by more than this share has left the operating point (the
-#: switching effort outweighs any torque error): it is reported, not part of the front
-HOLD_SHARE = 0.5
-#: a front is interpolated between neighbours at most this ratio apart in f_sw; across a wider
-#: gap (a strategy that jumps from one way of switching to another) it is not known: '-'
+#: the switching frequencies the table reads each front at, Hz
+COMMON_FSW = (0.5e3, 1e3, 2e3, 3e3, 4e3, 5e3, 7e3, 10e3)
+#: the figures of every point (metric keys), and those the fronts are drawn and ranked by: the
+#: torque's ripple about its mean and its distortion against T* (T_RMSE cont), the current's
+#: distortion over its own fundamental (THD) and over the operating point's current (TDD)
+SHOWN = (
+    "f_sw_hz", "t_ripple_cont", "t_rmse_cont", "i_thd_cont", "i_tdd_cont", "t_mean_error_cont",
+    "psi_mean_error_cont", "i_fundamental_cont", "psi_rmse_cont", "t_rmse",
+)  # fmt: skip
+RANKED = ("t_ripple_cont", "t_rmse_cont", "i_thd_cont", "i_tdd_cont")
+#: what holding the operating point asks of a run (shares): its mean torque against T*, its
+#: mean |ψ_s| against ψ*, its current's fundamental against the operating point's current
+TOLERANCE = {"torque": 0.02, "flux": 0.02, "current": 0.02}
+#: a front is interpolated between neighbours at most this ratio apart in f_sw ...
 MAX_GAP = 2.0
+#: ... whose figures differ by no more than this power of their f_sw ratio (a steeper step is a
+#: jump from one way of switching to another, not a front: across it the table says '-')
+MAX_SLOPE = 3.0
+#: a front's point within this share of a column's frequency is that column's value as measured
+SNAP_SHARE = 0.03
+#: the papers' control period, s: the finite-control-set curves' values all run at it
+PAPERS_TS = 5e-5
+#: the other periods the finite-control-set curves run at, s, each over its smallest values:
+#: from 20 to 500 µs about 1.6 times apart, so that a law's points at neighbouring periods lie
+#: within :data:`MAX_GAP` of each other in f_sw
+PERIODS = (2e-5, 3.2e-5, 8e-5, 1.25e-4, 2e-4, 3.2e-4, 5e-4)
+PERIOD_VALUES = 2
+#: the PMSM prediction the finite-control-set curves run with wherever their family has the
+#: choice (``torque_controller.prediction``): the rotor's motion over the period compensated
+#: (docs/physics.md), not paper 001's frozen rotor, whose torque prediction runs high
+PREDICTION = "rotor_motion"
 #: the settings a curve may be traced over, with the range each may take
 KNOBS: dict[str, tuple[float, float]] = {
     "torque_controller.lambda_sw": (0.0, 1e3),
@@ -63,11 +101,87 @@ _LAMBDA = "torque_controller.lambda_sw"
 _FOC_TS = tuple(1e-3 / f for f in (0.5, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0))
 
 
+def pareto(points: Sequence[tuple[float, float]]) -> list[bool]:
+    """Which of (f_sw, figure) pairs lie on the front: no other pair has a lower-or-equal f_sw
+    and a lower-or-equal figure, one of them lower. NaN pairs never do."""
+    out = []
+    for i, (f, v) in enumerate(points):
+        if not (math.isfinite(f) and math.isfinite(v)):
+            out.append(False)
+            continue
+        dominated = any(
+            j != i and g <= f and w <= v and (g < f or w < v)
+            for j, (g, w) in enumerate(points)
+            if math.isfinite(g) and math.isfinite(w)
+        )
+        out.append(not dominated)
+    return out
+
+
+def joined(
+    a: tuple[float, float], b: tuple[float, float], *, max_gap: float = MAX_GAP,
+    max_slope: float = MAX_SLOPE,
+) -> bool:  # fmt: skip
+    """Whether two neighbouring front points (f_sw, figure), rising in f_sw, are one stretch of
+    the front: at most ``max_gap`` times apart in f_sw, and one regime — the figure steps by no
+    more than the ``max_slope`` power of their f_sw ratio (a steeper step is a jump from one way
+    of switching to another)."""
+    (f0, v0), (f1, v1) = a, b
+    if not f0 < f1 <= max_gap * f0:
+        return f0 == f1 and v0 == v1
+    if v0 <= 0.0 or v1 <= 0.0:
+        return True
+    return abs(math.log(v1 / v0)) <= max_slope * math.log(f1 / f0)
+
+
+def reading(
+    front: Sequence[tuple[float, float]], f: float, *, snap: float = SNAP_SHARE,
+    max_gap: float = MAX_GAP, max_slope: float = MAX_SLOPE,
+) -> tuple[int, int, float] | None:  # fmt: skip
+    """How the front (f_sw, figure) pairs, rising in f_sw, give its value at ``f`` Hz: (i, j,
+    s), the value being front[i]'s and front[j]'s mixed by s in log f_sw — a point within
+    ``snap`` of ``f`` as measured (i = j, s = 0), else the two neighbours that enclose ``f`` if
+    :func:`joined`; None where the front does not say."""
+    if not front:
+        return None
+    near = min(range(len(front)), key=lambda i: abs(math.log(front[i][0] / f)))
+    if abs(front[near][0] / f - 1.0) <= snap:
+        return near, near, 0.0
+    for i, ((f0, _), (f1, _)) in enumerate(zip(front, front[1:])):
+        if f0 < f < f1:
+            if not joined(front[i], front[i + 1], max_gap=max_gap, max_slope=max_slope):
+                return None
+            return i, i + 1, math.log(f / f0) / math.log(f1 / f0)
+    return None
+
+
+def interpolate(
+    front: Sequence[tuple[float, float]], f: float, *, snap: float = SNAP_SHARE,
+    max_gap: float = MAX_GAP, max_slope: float = MAX_SLOPE,
+) -> float | None:  # fmt: skip
+    """The front's figure at ``f`` Hz (:func:`reading`): log-log between the neighbours
+    (linear where a figure is not positive); None where the front does not say."""
+    r = reading(front, f, snap=snap, max_gap=max_gap, max_slope=max_slope)
+    if r is None:
+        return None
+    i, j, s = r
+    v0, v1 = front[i][1], front[j][1]
+    if i == j:
+        return v0
+    if v0 > 0 and v1 > 0:
+        return math.exp(math.log(v0) + s * (math.log(v1) - math.log(v0)))
+    return v0 + s * (v1 - v0)
+
+
 @dataclass(frozen=True)
 class Curve:
-    """One strategy traced over one knob: ``knob`` (a key of :data:`KNOBS`) takes ``values`` in
-    turn on scenario ``scenario``, with ``settings`` besides. ``label`` names the curve (the
-    strategy's name unless a setting tells two curves of one strategy apart)."""
+    """One strategy traced over one knob: ``knob`` (a key of :data:`KNOBS`, or a parameter of a
+    controller of one's own) takes ``values`` in turn on scenario ``scenario``, with ``settings``
+    besides, at the scenario's period and at each of ``periods`` over the first
+    :data:`PERIOD_VALUES` values. ``label`` names the curve (the strategy's name unless a
+    setting tells two curves of one strategy apart); ``external``: the command of a controller
+    of one's own (run through the ROS graph, named ``external:LABEL``, its points the first
+    ``period_values`` values at each period)."""
 
     strategy: str
     scenario: str
@@ -75,10 +189,26 @@ class Curve:
     values: tuple[float, ...]
     settings: dict[str, Any] = field(default_factory=dict)
     label: str = ""
+    periods: tuple[float, ...] = ()
+    period_values: int = PERIOD_VALUES
+    external: str | None = None
 
     @property
     def name(self) -> str:
         return self.label or self.strategy
+
+    @property
+    def horizon(self) -> int:
+        """The law's horizon N (1 unless the curve sets one)."""
+        return int(self.settings.get("torque_controller.horizon", 1))
+
+    def points(self) -> list[dict[str, Any]]:
+        """Each run's own settings: the knob's value, and the period where it is not the
+        scenario's."""
+        out: list[dict[str, Any]] = [{self.knob: v} for v in self.values]
+        for ts in self.periods:
+            out += [{"ts": ts, self.knob: v} for v in sorted(self.values)[: self.period_values]]
+        return out
 
 
 @dataclass(frozen=True)
@@ -90,12 +220,14 @@ class OperatingPoint:
     curves: tuple[Curve, ...]
     papers_ranking: tuple[str, ...] = ()
     papers_source: str = ""
+    #: the point's finite-control-set scenario: where a controller of one's own runs
+    scenario: str = ""
 
 
 def _fcs(
     scenario: str, strategies: tuple[str, ...], values: dict[str, tuple[float, ...]]
 ) -> tuple[Curve, ...]:
-    return tuple(Curve(s, scenario, _LAMBDA, values[s]) for s in strategies)
+    return tuple(Curve(s, scenario, _LAMBDA, values[s], periods=PERIODS) for s in strategies)
 
 
 def _horizons(
@@ -107,6 +239,7 @@ def _horizons(
         Curve(
             strategy, scenario, knob, values, {"torque_controller.horizon": n},
             label=strategy if n == 1 and strategy == "mptc" else f"{strategy} N={n}",
+            periods=PERIODS,
         )
         for n in horizons
     )  # fmt: skip
@@ -132,10 +265,11 @@ FRONTS: dict[str, OperatingPoint] = {
         (
             *_fcs("im_steady", ("mptc", "mptc_db", "db_mptc"), _IM_LAMBDA),
             *_horizons("mptc", "im_steady", _LAMBDA, _IM_LAMBDA["mptc"], MPTC_HORIZONS),
-            Curve("ifoc", "im_steady_foc", "ts", _FOC_TS, label="foc_im"),
+            Curve("ifoc", "im_steady_foc", "ts", _FOC_TS),
         ),
         ("db_mptc", "mptc_db", "mptc"),
         "paper 000 Table 2, T_RMSE",
+        "im_steady",
     ),
     "ipmsm_steady": OperatingPoint(
         "paper 001's interior PMSM (Li et al., CTA 2023, §6) held at 1000 r/min, T* = 15 N·m",
@@ -149,10 +283,11 @@ FRONTS: dict[str, OperatingPoint] = {
                 _LAMBDA_U,
                 DIRECT_HORIZONS,
             ),  # fmt: skip
-            Curve("foc_formula", "ipmsm_steady_foc", "ts", _FOC_TS, label="foc_mtpa"),
+            Curve("foc_formula", "ipmsm_steady_foc", "ts", _FOC_TS),
         ),
         ("mptc", "simplified2", "simplified1", "simplified3"),
         "paper 001 Table 9, T_rip",
+        "ipmsm_steady",
     ),
     "hs_ipmsm_steady": OperatingPoint(
         "paper 002's high-speed interior PMSM (Yuan et al., JMEE 2018) held at 100 rad/s, "
@@ -167,7 +302,8 @@ FRONTS: dict[str, OperatingPoint] = {
                 _LAMBDA_U,
                 DIRECT_HORIZONS,
             ),  # fmt: skip
-            Curve("foc_formula", "hs_ipmsm_steady_foc", "ts", _FOC_TS, label="foc_mtpa"),
+            Curve("foc_formula", "hs_ipmsm_steady_foc", "ts", _FOC_TS),
         ),
+        scenario="hs_ipmsm_steady",
     ),
 }

@@ -21,6 +21,13 @@ in through dψ_r/dt on d and through the slip on q), with the cross-coupling fed
 
 so the current PIs (:mod:`.foc`) are designed on R_σ and σL_s. Inverse Park at the frame's angle
 in the middle of the period, then SVPWM.
+
+With ``current_target: period_mean`` the loop, the current model and the estimates take the
+period's mean current, not the sample (:func:`~.foc.mean_offset` on R_σ, σL_s): the rotor flux and
+the torque follow the current between the samples, and at a low pulse ratio the two part — at
+0.5, 1 and 2 kHz on paper 000's point the machine's mean torque misses T* by -32, -9.4 and -2.6 %
+with the sample held (its frame 12° off the rotor flux at 0.5 kHz), by +7.1, +1.7 and +0.25 %
+with the mean.
 """
 
 from __future__ import annotations
@@ -43,9 +50,11 @@ from .foc import (
     Modulator,
     current_bandwidth,
     current_pi_of,
+    current_target,
     current_tuning,
     dead_time_compensation,
     drop_compensation,
+    mean_offset,
 )
 
 __all__ = ["FOCIMController", "FOCIMParams", "FOC_IM_STRATEGIES", "RotorFluxModel"]
@@ -77,6 +86,7 @@ class FOCIMParams:
     strategy: str = choice("field orientation; one law", tuple(FOC_IM_STRATEGIES), default="ifoc")
     current_tuning: str = current_tuning("technical_optimum")
     current_bandwidth_hz: float = current_bandwidth(500.0)
+    current_target: str = current_target("sample")
     min_flux_share: float = quantity(
         "smallest ψ_r the slip divides by, as a share of ψ_r*", gt=0, le=1, default=0.1
     )
@@ -141,7 +151,9 @@ class FOCIMController(FieldOrientedController):
         self.i_ref = 0j
         self.i_dq = 0j
         self.u_ab = 0j
-        self._w_s = 0.0
+        self._w_s = 0.0  #: the frame's speed over the last period, rad/s
+        self.u_dq = 0j  #: the voltage of the last period, the frame's dq at its middle, V
+        self._mean = params.current_target == "period_mean"
         self._last: tuple[complex, float, float] | None = None  #: i_dq, ω_r, ω_sl of the last
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
         super().__init__(params, ts=ts)
@@ -163,6 +175,10 @@ class FOCIMController(FieldOrientedController):
         if self._last is not None:  # the frame and flux at this sample, from the last one's
             model.advance(*self._last)
         i_dq = park(complex(state.i_alpha, state.i_beta), model.theta)
+        if self._mean:  # the period's mean current, what the machine's flux and torque follow
+            i_dq += mean_offset(
+                self.u_dq, w=self._w_s, ts=self.ts, r=self.r_sigma, ind=self.sigma_ls
+            )
         self.i_dq = i_dq
         psi_s = complex(
             self.sigma_ls * i_dq.real + (self._m.l_m / self._m.l_r) * model.psi_r,
@@ -188,6 +204,7 @@ class FOCIMController(FieldOrientedController):
 
         u = self.loop.voltage_with(i_ref, i_dq, linear_limit(state.u_dc), decoupling)
         self.i_ref = i_ref
+        self.u_dq, self._w_s = u, w_s
         self._last = (i_dq, w_r, slip)
         # αβ at the frame's angle in the middle of the period, where its volt-seconds act
         return inverse_park(u, model.theta + 0.5 * w_s * self.ts)

@@ -1,8 +1,9 @@
 """Paper 002: field-oriented control of the PMSM with SVPWM, the controller family ``foc_pmsm``
 (docs/physics.md#field-oriented-control-and-mtpa). Its strategies are the MTPA laws of :mod:`.mtpa`.
 
-Per step: the torque reference T* asks for the current amplitude I_s = |T*|/k_t (k_t = 1.5 p ψ_f,
-the sign carried by i_q); the MTPA law gives the angle θ from the q axis, i_d* = -I_s sin θ,
+Per step: the torque reference T* asks the MTPA law for the current amplitude I_s (|T*|/k_t, k_t =
+1.5 p ψ_f, for i_d = 0 and the injection; the amplitude that makes T* at the MTPA angle for the
+formula) and the angle θ from the q axis (the sign carried by i_q), i_d* = -I_s sin θ,
 i_q* = ±I_s cos θ; the :class:`CurrentLoop` (a PI per axis with decoupling) turns the current
 error into u_dq, limited to the circle inscribed in the hexagon (the PIs hold their integrators
 while it limits: clamping anti-windup); inverse Park at the rotor angle of the period's middle
@@ -10,7 +11,10 @@ while it limits: clamping anti-windup); inverse Park at the rotor angle of the p
 
 The current PIs (:mod:`.foc`, shared with ``foc_im``) are designed on the zero-order-hold model
 of each axis with the controller's own R_s, L_d, L_q: the PI zero cancels the pole, so the
-closed loop is first order at the chosen bandwidth f_c (or tuned by the technical optimum).
+closed loop is first order at the chosen bandwidth f_c (or tuned by the technical optimum); with
+``current_target: period_mean`` they hold the period's mean current, not the sample
+(:func:`~.foc.mean_offset_dq`): at 0.5 kHz on paper 001's IPMSM the sample held leaves |ψ_s| 2.9 %
+below its reference, the mean 0.5 % above.
 """
 
 from __future__ import annotations
@@ -37,9 +41,11 @@ from .foc import (
     current_bandwidth,
     current_pi,
     current_pi_of,
+    current_target,
     current_tuning,
     dead_time_compensation,
     drop_compensation,
+    mean_offset_dq,
 )
 from .maps import MapMTPA, flux_map_of, map_current
 from .mtpa import INJECTION_FORMS, FormulaMTPA, InjectionMTPA, MTPAContext, MTPAInputs, ZeroD
@@ -76,6 +82,7 @@ class FOCParams:
     strategy: str = choice("MTPA law; switchable at run time", tuple(FOC_STRATEGIES))
     current_bandwidth_hz: float = current_bandwidth(300.0)
     current_tuning: str = current_tuning("bandwidth")
+    current_target: str = current_target("sample")
     injection_amplitude: float = quantity(
         "dither amplitude A of the current angle (foc_injection)", "rad", ge=0, le=0.5, default=0.05
     )
@@ -199,6 +206,7 @@ class FOCController(FieldOrientedController):
         self.i_ref = 0j
         self._i_prev: complex | None = None
         self._i_dq = 0j
+        self._mean = params.current_target == "period_mean"
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
         fm = flux_map_of(m, params.saturation)
         self._map = None if fm is None else MapMTPA(fm, m.p)
@@ -220,6 +228,10 @@ class FOCController(FieldOrientedController):
         c = self._ctx
         the = state.theta_e
         i_dq = park(complex(state.i_alpha, state.i_beta), the)
+        if self._mean:  # the period's mean current, what the torque follows (.foc)
+            i_dq += mean_offset_dq(
+                self.u_dq, w=c.p * state.omega_m, ts=self.ts, r=c.r_s, l_d=c.l_d, l_q=c.l_q
+            )
         self._i_dq = i_dq
         psi = complex(c.l_d * i_dq.real + c.psi_f, c.l_q * i_dq.imag)
         self.est_torque = 1.5 * c.p * (psi.real * i_dq.imag - psi.imag * i_dq.real)
@@ -230,7 +242,7 @@ class FOCController(FieldOrientedController):
         c = self._ctx
         t_ref = ref.torque_ref
         sign = 1.0 if t_ref >= 0.0 else -1.0
-        i_s = abs(t_ref) / self._k_t
+        i_s = self.strategy.current(t_ref, c)
         i_dq = self._i_dq
         i_prev = i_dq if self._i_prev is None else self._i_prev
         the_prev = state.theta_e if self._theta_e_prev is None else self._theta_e_prev

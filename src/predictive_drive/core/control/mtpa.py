@@ -5,11 +5,16 @@ family.
 The current vector is I_s at the angle θ from the q axis: i_d = -I_s sin θ, i_q = ±I_s cos θ
 (the sign of the torque). T = 1.5 p I_s cos θ [ψ_f - (L_d - L_q) I_s sin θ] (paper 002 eq 8).
 
-- ``foc_zero_d``: θ = 0 (i_d = 0 control).
-- ``foc_formula``: paper 002 eq 10 with the controller's L_d, L_q, ψ_f.
+Each law also says the amplitude I_s the torque reference asks for (``current``):
+
+- ``foc_zero_d``: θ = 0 (i_d = 0 control), I_s = |T*|/k_t, k_t = 1.5 p ψ_f.
+- ``foc_formula``: paper 002 eq 10 with the controller's L_d, L_q, ψ_f, at the amplitude whose
+  eq-10 angle gives T* by eq 8 — the reluctance torque counted (:func:`mtpa_current`): |T*|/k_t
+  at 13.1° gives paper 001's IPMSM 15.47 N·m for 15.
 - ``foc_injection``: θ = θ0 + A sin(ω_h t); the torque's response to the dither, extracted by a
   sliding DFT (eq 17-18, M samples per dither period), says which way dT/dθ points; an
-  integrator moves θ0 until it is zero, without L_d, L_q. Two forms:
+  integrator moves θ0 until it is zero, without L_d, L_q — and so at I_s = |T*|/k_t, the
+  reluctance torque left to the speed loop. Two forms:
 
   ``corrected`` (default) — the torque per ampere T/|i|, the torque from a flux estimate that
   needs no L_d, L_q (:class:`FluxObserver`: the volt-seconds the controller applied, pulled
@@ -40,6 +45,7 @@ __all__ = [
     "SlidingDFT",
     "ZeroD",
     "formula_angle",
+    "mtpa_current",
     "mtpa_point",
     "torque_at",
 ]
@@ -64,6 +70,29 @@ def torque_at(i_s: float, theta: float, *, p: int, psi_f: float, l_d: float, l_q
     """T = 1.5 p I_s cos θ [ψ_f - (L_d - L_q) I_s sin θ], N·m (paper 002 eq 8), θ from the q
     axis."""
     return 1.5 * p * i_s * math.cos(theta) * (psi_f - (l_d - l_q) * i_s * math.sin(theta))
+
+
+def mtpa_current(
+    torque: float, *, p: int, psi_f: float, l_d: float, l_q: float, start: float = 0.0
+) -> float:
+    """The amplitude I_s (A) whose eq-10 angle gives ``torque`` (N·m, its magnitude) by eq 8:
+    Newton's method on T(I_s) along the MTPA curve, whose slope there is ∂T/∂I_s at the fixed
+    angle (∂T/∂θ = 0 at MTPA), 1.5 p cos θ (ψ_f - 2(L_d - L_q) I_s sin θ). From ``start`` (A;
+    default |T|/k_t, which i_d = 0 needs and MTPA never exceeds) to 1e-12 of I_s."""
+    t = abs(torque)
+    if t == 0.0:
+        return 0.0
+    dl = l_d - l_q
+    i_s = start if start > 0.0 else t / (1.5 * p * psi_f)
+    for _ in range(50):
+        th = formula_angle(i_s, psi_f, l_d, l_q)
+        sin, cos = math.sin(th), math.cos(th)
+        made = 1.5 * p * i_s * cos * (psi_f - dl * i_s * sin)
+        step = (made - t) / (1.5 * p * cos * (psi_f - 2.0 * dl * i_s * sin))
+        i_s -= step
+        if abs(step) <= 1e-12 * i_s:
+            break
+    return i_s
 
 
 class MTPAPoint(NamedTuple):
@@ -154,10 +183,19 @@ class MTPAInputs(NamedTuple):
     omega_m: float  #: measured mechanical speed, rad/s
 
 
+def _k_t_current(torque: float, ctl: MTPAContext) -> float:
+    """|T|/k_t (A), k_t = 1.5 p ψ_f: the amplitude the magnet's torque alone needs."""
+    return abs(torque) / (1.5 * ctl.p * ctl.psi_f)
+
+
 class ZeroD:
     """i_d = 0 control: θ = 0."""
 
     name = "foc_zero_d"
+
+    def current(self, torque: float, ctl: MTPAContext) -> float:
+        """The amplitude (A) the torque reference (N·m) asks for: |T*|/k_t."""
+        return _k_t_current(torque, ctl)
 
     def angle(self, x: MTPAInputs, ctl: MTPAContext) -> float:
         return 0.0
@@ -167,9 +205,22 @@ class ZeroD:
 
 
 class FormulaMTPA:
-    """Paper 002 eq 10 with the controller's L_d, L_q, ψ_f."""
+    """Paper 002 eq 10 with the controller's L_d, L_q, ψ_f, at the amplitude that makes the
+    torque with them (:func:`mtpa_current`)."""
 
     name = "foc_formula"
+
+    def __init__(self) -> None:
+        self._last = (0.0, 0.0)  #: (|T*|, I_s) of the last call: T* held, no search
+
+    def current(self, torque: float, ctl: MTPAContext) -> float:
+        t = abs(torque)
+        if t != self._last[0]:
+            i_s = mtpa_current(
+                t, p=ctl.p, psi_f=ctl.psi_f, l_d=ctl.l_d, l_q=ctl.l_q, start=self._last[1]
+            )
+            self._last = (t, i_s)
+        return self._last[1]
 
     def angle(self, x: MTPAInputs, ctl: MTPAContext) -> float:
         return formula_angle(x.i_s, ctl.psi_f, ctl.l_d, ctl.l_q)
@@ -214,6 +265,10 @@ class InjectionMTPA:
         self._current = SlidingDFT(2)  # replaced by the dither period's mean of I_s
         self._m = 0
         self._since = 0  #: steps since the law started (its DFT windows fill)
+
+    def current(self, torque: float, ctl: MTPAContext) -> float:
+        """|T*|/k_t: without L_d, L_q the injection cannot count the reluctance torque."""
+        return _k_t_current(torque, ctl)
 
     def start(self, theta: float, ctl: MTPAContext) -> None:
         """Take over at the present current angle: θ0 starts there."""
