@@ -93,3 +93,28 @@ def test_the_sphere_decoder_breaks_ties_to_the_smallest_sequence():
     """V = I, ū = ½: every binary U lies at the same distance; the rule takes the smallest."""
     got = sphere_decode(np.eye(4).tolist(), [0.5] * 4, (1, 1, 0, 1))
     assert got.sequence == (0, 0, 0, 0) and got.cost == 1.0
+
+
+@pytest.mark.parametrize("n", [1, 3, 6, 9])
+@pytest.mark.parametrize("levels", [(0, 1), (-1, 0, 1)], ids=["two-level", "three-level"])
+def test_the_compiled_decoder_is_the_reference_bit_for_bit(n, levels):
+    """The numba kernel against search.sphere_decode on the same problems, with and without a
+    guess (the first radius from a shifted optimum, or from any sequence): the same sequence,
+    the same distance to the last bit and the same node count."""
+    kernels = pytest.importorskip("predictive_drive.core.control.kernels")
+    if kernels.kernel_unavailable() is not None:
+        pytest.skip(kernels.kernel_unavailable())
+    compiled = kernels.compiled_sphere_decoder()
+    rng = np.random.default_rng(100 + n)
+    for trial in range(60):
+        a = rng.standard_normal((n + 2, n))
+        h = a.T @ a + rng.choice([1e-3, 0.1, 1.0]) * np.eye(n)
+        v = np.linalg.cholesky(h).T
+        ubar = v @ rng.uniform(min(levels) - 0.5, max(levels) + 0.5, n)
+        first = sphere_decode(v.tolist(), ubar.tolist(), (), levels)
+        shifted = (*first.sequence[1:], first.sequence[-1])
+        for guess in ((), shifted, first.sequence, tuple(rng.choice(levels, n).tolist())):
+            want = sphere_decode(v.tolist(), ubar.tolist(), guess, levels)
+            got = compiled(v, ubar, guess, levels)
+            assert got == want, (trial, guess)
+            assert type(got.cost) is float and type(got.nodes) is int
