@@ -21,11 +21,13 @@ from predictive_drive.core.control.mptc_im import IMPrediction
 from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
 from predictive_drive.core.inverter import (
     active_then_zero,
+    clarke,
     segments,
     vector_voltages,
 )
 from predictive_drive.core.machines.induction import InductionCoefficients, induction_dynamics
-from predictive_drive.core.machines.pmsm import PMSM, PMSMCoefficients
+from predictive_drive.core.machines.pmsm import PMSM, PMSMCoefficients, pmsm_predict_current
+from predictive_drive.core.signals import Reference, State
 from predictive_drive.errors import ConfigError
 
 pytestmark = pytest.mark.core
@@ -301,3 +303,52 @@ def test_direct_mpc_equals_exhaustive_enumeration(horizon):
         assert found.cost + problem.constant == pytest.approx(best, rel=1e-7, abs=1e-9)
         if compiled is not None:
             assert compiled(problem.v, problem.ubar) == found
+
+
+def _commutations(seq, prev):
+    periods = [tuple(seq[i : i + 3]) for i in range(0, len(seq), 3)]
+    return sum(sum(a != b for a, b in zip(x, y)) for x, y in zip([prev, *periods], periods))
+
+
+def _same_voltages(seq):
+    """Every sequence applying the voltages of ``seq``: 000 and 111 exchanged at its zeros."""
+    periods = [tuple(seq[i : i + 3]) for i in range(0, len(seq), 3)]
+    zero = ((0, 0, 0), (1, 1, 1))
+    options = [zero if p in zero else (p,) for p in periods]
+    return [sum(choice, ()) for choice in itertools.product(*options)]
+
+
+def _pmsm_state(i_ab: complex, theta_e: float, omega_m: float) -> State:
+    nan = math.nan
+    values = dict.fromkeys(State._fields, nan)
+    values.update(k=0.0, t=0.0, i_alpha=i_ab.real, i_beta=i_ab.imag, omega_m=omega_m,
+                  theta_e=theta_e, u_dc=312.0)  # fmt: skip
+    return State(**values)
+
+
+@pytest.mark.parametrize(("horizon", "lam_u"), [(2, 1e-4), (3, 1e-4), (4, 0.01), (5, 0.01)])
+def test_direct_mpc_breaks_exact_ties_to_the_smallest_sequence(horizon, lam_u):
+    """Sequences that differ only in 000 against 111 give the same currents, so with equal
+    commutation counts they cost exactly the same: the controller's plan is the smallest of
+    them, every time (the decoder's distance, rounded differently for each, does not decide),
+    and never one with more commutations than another of them. A closed loop of 600 periods on
+    the controller's own model at 1000 r/min, T* = 15 N·m, where the zero vectors come often."""
+    sc = load_scenario("ipmsm_steady_mpc")
+    params = dataclasses.replace(sc.controller, horizon=horizon, lambda_u=lam_u)
+    ctrl = make_controller("mpc_pmsm", params, ts=TS)
+    c = PMSMCoefficients.of(params.motor)
+    ref = Reference(0.0, 0.0, 15.0, 0.24, 0.0)
+    i_ab, theta, w_m = 0j, 0.3, 1000 * math.pi / 30
+    ties = 0
+    for _ in range(600):
+        prev = ctrl.switches
+        cmd = ctrl.step(_pmsm_state(i_ab, theta % (2 * math.pi), w_m), ref)
+        plan = ctrl.strategy.plan
+        variants = _same_voltages(plan)
+        fewest = min(_commutations(s, prev) for s in variants)
+        tied = sorted(s for s in variants if _commutations(s, prev) == fewest)
+        ties += len(tied) > 1
+        assert plan == tied[0], (plan, tied)
+        u_ab = 312.0 * clarke(cmd.duty_a, cmd.duty_b, cmd.duty_c)
+        i_ab, theta = pmsm_predict_current(c, TS, i_ab, theta, w_m, u_ab)
+    assert ties >= 5  # the rule was exercised

@@ -17,8 +17,11 @@ turning ω_e·Ts a period, each period's voltage turned into dq at its middle �
 i(ℓ+1) = A i(ℓ) + B_ℓ u(ℓ) + c — so J is, up to a constant, (U - U_unc)ᵀ H (U - U_unc) with
 H = ΥᵀΥ + λ_u SᵀS over the stacked U. With H = VᵀV (V upper triangular, from the Cholesky
 factor) it is the integer least-squares problem min ‖V·U_unc - V·U‖², solved exactly by
-:func:`~.search.sphere_decode`, the last optimum shifted as its first radius. The first three
-components of the optimum are applied for the whole period; ``cal`` is the decoder's node count.
+:func:`~.search.sphere_decode`, the last optimum shifted as its first radius. Of the sequences
+that apply the optimum's voltages (000 and 111 exchanged), the fewest commutations and then the
+lexicographically smallest is taken (:func:`smallest_of_equal_cost`: exact ties, which the
+decoder's rounded distance cannot order). The first three components are applied for the whole
+period; ``cal`` is the decoder's node count.
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ __all__ = [
     "MTPA_LAWS",
     "QuadraticProblem",
     "current_problem",
+    "smallest_of_equal_cost",
 ]
 
 NAN = math.nan
@@ -194,6 +198,46 @@ def current_problem(
     return QuadraticProblem(v, v @ u_unc, constant)
 
 
+#: the two zero vectors: the same voltage, so the same currents
+_ZEROS = ((0, 0, 0), (1, 1, 1))
+
+
+def _commutations(a: tuple[int, ...], b: tuple[int, ...]) -> int:
+    return (a[0] != b[0]) + (a[1] != b[1]) + (a[2] != b[2])
+
+
+def smallest_of_equal_cost(
+    sequence: tuple[int, ...], u_prev: tuple[int, int, int]
+) -> tuple[int, ...]:
+    """The tie rule made exact (docs/physics.md#long-horizons): of the sequences that apply the
+    voltages of ``sequence`` (000 and 111 exchanged where it holds a zero vector) the one with
+    the fewest commutations from ``u_prev``, the lexicographically smallest of those.
+
+    Their currents are the same, so their costs differ by λ_u × commutations, integers: an
+    exact tie where the counts are equal, which the decoder's distance (the same cost by
+    another road, rounded otherwise for each) cannot tell apart. Backwards, the fewest
+    commutations to the horizon's end from each choice; forwards, the first choice (000 before
+    111) that keeps to them."""
+    periods = [sequence[i : i + 3] for i in range(0, len(sequence), 3)]
+    options = [_ZEROS if p in _ZEROS else (p,) for p in periods]
+    if all(len(o) == 1 for o in options):
+        return sequence
+    to_go: list[dict[tuple[int, ...], int]] = [{} for _ in periods]
+    to_go[-1] = {x: 0 for x in options[-1]}
+    for ell in range(len(periods) - 2, -1, -1):
+        after = to_go[ell + 1]
+        to_go[ell] = {
+            x: min(_commutations(x, y) + n for y, n in after.items()) for x in options[ell]
+        }
+    out: list[int] = []
+    last: tuple[int, ...] = u_prev
+    for ell, choices in enumerate(options):
+        costs = [_commutations(last, x) + to_go[ell][x] for x in choices]
+        last = choices[costs.index(min(costs))]
+        out += last
+    return tuple(out)
+
+
 def _decoder(name: str) -> Any:
     """The sphere decoder ``name`` asks for (:data:`DECODERS`); ConfigError for ``compiled``
     where numba is missing."""
@@ -271,9 +315,9 @@ class MPCController(Controller):
         plan = law.plan
         guess = (*plan[3:], *plan[-3:]) if len(plan) == 3 * self.horizon else ()
         found = self._decode(problem.v, problem.ubar, guess)
-        law.plan = found.sequence
+        law.plan = smallest_of_equal_cost(found.sequence, self.switches)
         self._nodes = found.nodes
-        u = found.sequence[:3]
+        u = law.plan[:3]
         return (u[0], u[1], u[2])
 
     def _horizon_set(self) -> None:
