@@ -121,16 +121,17 @@ def test_multistep_mptc_of_the_induction_motor_equals_exhaustive_enumeration(im,
         assert got in best_first(cost, seqs), (i, psi, w, t_ref, code, lam_sw)
 
 
-def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs, sw, u_dc):
+def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs, sw, u_dc, end=0):
     """Each sequence's cost by eq 1-3 in vector form: ψ(ℓ+1) = ψ(ℓ) + V·Ts (R_s neglected), the
-    rotor turning ω_e·Ts a period (frozen within it), torque from the flux in the rotor frame."""
+    rotor turning ω_e·Ts a period (frozen within it; ``end`` = 1: the torque at the period's
+    end angle), torque from the flux in the rotor frame."""
     volts = np.array(vector_voltages(u_dc))
     psi = np.full(len(seqs), psi_ab, dtype=complex)
     norm_t = max(abs(t_ref), t_floor)
     cost = np.zeros(len(seqs))
     for ell in range(seqs.shape[1]):
         psi = psi + volts[seqs[:, ell]] * TS
-        dq = psi * cmath.exp(-1j * (theta_e + ell * w_e * TS))
+        dq = psi * cmath.exp(-1j * (theta_e + (ell + end) * w_e * TS))
         i_d, i_q = (dq.real - motor.psi_f) / motor.l_d, dq.imag / motor.l_q
         te = 1.5 * motor.p * (motor.psi_f * i_q + (motor.l_d - motor.l_q) * i_d * i_q)
         e = np.hypot((te - t_ref) / norm_t, (np.abs(psi) - psi_ref) / psi_ref)
@@ -141,27 +142,30 @@ def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs,
 IPMSM = PMSM(0.25, 0.0033, 0.0073, 0.2264, 3, 0.001, 15.0, 1000.0)
 
 
+@pytest.mark.parametrize("prediction", ["frozen_rotor", "rotor_motion"])
 @pytest.mark.parametrize("horizon", [1, 2, 3])
-def test_multistep_mptc_of_the_pmsm_equals_exhaustive_enumeration(horizon):
+def test_multistep_mptc_of_the_pmsm_equals_exhaustive_enumeration(horizon, prediction):
     c = PMSMCoefficients.of(IPMSM)
     seqs = SEQUENCES[horizon]
     s = make_strategy("mptc_pmsm", "mptc")
     rng = random.Random(10 + horizon)
-    for _ in range(CASES):
+    end = int(prediction == "rotor_motion")
+    for _ in range(CASES if not end else CASES // 5):
         i = complex(rng.uniform(-8, 4), rng.uniform(-25, 25))
         theta = rng.uniform(0, 2 * math.pi)
         i_ab = i * cmath.exp(1j * theta)
         w_e, t_ref, psi_ref = rng.uniform(-400, 400), rng.uniform(-30, 30), rng.uniform(0.2, 0.3)
         code, lam_sw = rng.randrange(8), rng.choice([0.0, 0.0, 0.01, 0.05])
         m = PMSMPrediction(c, TS, 0.75, 0.15, SwitchingEffort(lam_sw) if lam_sw else None)
-        m.prepare(i_ab.real, i_ab.imag, theta, 312.0)
+        m.rotor_motion = bool(end)
+        m.prepare(i_ab.real, i_ab.imag, theta, 312.0, w_e)
         m.theta_e, m.w_e, m.volts, m.horizon = theta, w_e, vector_voltages(312.0), horizon
         m.switching(STATE_OF[code])
         s.plan = ()
         got = s.decide(m, t_ref, psi_ref).vector  # N = 1: the one-step law, eq 1-3 in polar form
         psi_ab = m.psi * cmath.exp(1j * m.theta_psi)
         sw = switching_cost(seqs, code, lam_sw)
-        cost = pmsm_costs(IPMSM, psi_ab, theta, w_e, t_ref, psi_ref, 0.15, seqs, sw, 312.0)
+        cost = pmsm_costs(IPMSM, psi_ab, theta, w_e, t_ref, psi_ref, 0.15, seqs, sw, 312.0, end)
         assert got in best_first(cost, seqs), (i, theta, w_e, t_ref, psi_ref, code, lam_sw)
 
 
@@ -245,9 +249,11 @@ STATES8 = np.array([((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)])
 SWITCH_SEQUENCES = {n: np.array(list(itertools.product(range(8), repeat=n))) for n in (1, 2, 3)}
 
 
-def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, horizon):
+def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, horizon, exact=None):
     """J of every switching sequence, simulated here step by step (complex dq arithmetic):
-    Σ |(i* - i(ℓ+1))/I_b|² + λ_u ‖u(ℓ) - u(ℓ-1)‖²; the sequences (codes 0..7 per step)."""
+    Σ |(i* - i(ℓ+1))/I_b|² + λ_u ‖u(ℓ) - u(ℓ-1)‖²; the sequences (codes 0..7 per step). The
+    model forward Euler in dq, the voltage at each period's middle angle; or ``exact`` (a
+    PMSMStep): i(ℓ+1) = A·i + G·u + f, the voltage at each period's start angle."""
     seqs = SWITCH_SEQUENCES[horizon]
     a = cmath.exp(2j * math.pi / 3)
     u_ab = 2.0 / 3.0 * u_dc * (STATES8[:, 0] + a * STATES8[:, 1] + a * a * STATES8[:, 2])
@@ -256,14 +262,20 @@ def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, hori
     cost = np.zeros(len(seqs))
     for ell in range(horizon):
         code = seqs[:, ell]
-        u = u_ab[code] * cmath.exp(-1j * (theta + (ell + 0.5) * w_e * TS))
-        i_d = i.real + TS * (u.real - motor.r_s * i.real + w_e * motor.l_q * i.imag) / motor.l_d
-        i_q = (
-            i.imag
-            + TS
-            * (u.imag - motor.r_s * i.imag - w_e * (motor.l_d * i.real + motor.psi_f))
-            / motor.l_q
-        )
+        if exact is not None:
+            x = exact
+            u = u_ab[code] * cmath.exp(-1j * (theta + ell * w_e * TS))
+            i_d = x.a11 * i.real + x.a12 * i.imag + x.g11 * u.real + x.g12 * u.imag + x.f_d
+            i_q = x.a21 * i.real + x.a22 * i.imag + x.g21 * u.real + x.g22 * u.imag + x.f_q
+        else:
+            u = u_ab[code] * cmath.exp(-1j * (theta + (ell + 0.5) * w_e * TS))
+            i_d = i.real + TS * (u.real - motor.r_s * i.real + w_e * motor.l_q * i.imag) / motor.l_d
+            i_q = (
+                i.imag
+                + TS
+                * (u.imag - motor.r_s * i.imag - w_e * (motor.l_d * i.real + motor.psi_f))
+                / motor.l_q
+            )
         i = i_d + 1j * i_q
         cost = cost + np.abs((i_ref - i) / i_base) ** 2
         cost = cost + lam_u * np.sum((STATES8[code] - last) ** 2, axis=1)
@@ -271,30 +283,38 @@ def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, hori
     return seqs, cost
 
 
+@pytest.mark.parametrize("prediction", ["frozen_rotor", "rotor_motion"])
 @pytest.mark.parametrize("horizon", [1, 2, 3])
-def test_direct_mpc_equals_exhaustive_enumeration(horizon):
+def test_direct_mpc_equals_exhaustive_enumeration(horizon, prediction):
     """The sphere decoder's first switch positions are the first of the cheapest of all 8^N
     sequences (10,000 random currents, angles, speeds, references, weights and switch states
-    in force); the compiled decoder, where numba is installed, decides the same, bit for bit."""
+    in force; 2,000 with the rotor's motion, the period's exact solution held to the plant's
+    integrator in test_prediction.py); the compiled decoder, where numba is installed, decides
+    the same, bit for bit."""
     from predictive_drive.core.control.kernels import compiled_sphere_decoder, kernel_unavailable
     from predictive_drive.core.control.mpc_pmsm import current_problem
     from predictive_drive.core.control.search import sphere_decode
+    from predictive_drive.core.machines.pmsm import pmsm_exact_step
 
     compiled = compiled_sphere_decoder() if kernel_unavailable() is None else None
     c = PMSMCoefficients.of(IPMSM)
     i_base = 15.0 / (1.5 * 3 * 0.2264)
     rng = random.Random(20 + horizon)
-    for _ in range(CASES):
+    motion = prediction == "rotor_motion"
+    for _ in range(CASES if not motion else CASES // 5):
         i = complex(rng.uniform(-10, 5), rng.uniform(-25, 25))
         ref = complex(rng.uniform(-10, 5), rng.uniform(-25, 25))
         theta, w_e = rng.uniform(0, 2 * math.pi), rng.uniform(-400, 400)
         lam_u, prev = rng.choice([0.001, 0.01, 0.1, 1.0]), tuple(STATES8[rng.randrange(8)])
+        exact = pmsm_exact_step(c, TS, w_e) if motion else None
         problem = current_problem(
             c, ts=TS, i_dq=i, theta_e=theta, w_e=w_e, u_dc=312.0, i_ref=ref, i_base=i_base,
-            lambda_u=lam_u, u_prev=prev, horizon=horizon,
+            lambda_u=lam_u, u_prev=prev, horizon=horizon, exact=exact,
         )  # fmt: skip
         found = sphere_decode(problem.v.tolist(), problem.ubar.tolist())
-        seqs, cost = direct_costs(IPMSM, i, theta, w_e, 312.0, ref, i_base, lam_u, prev, horizon)
+        seqs, cost = direct_costs(
+            IPMSM, i, theta, w_e, 312.0, ref, i_base, lam_u, prev, horizon, exact
+        )
         best = cost.min()
         near = np.flatnonzero(cost <= best + 1e-9 * (1.0 + best))
         firsts = {tuple(STATES8[seqs[j, 0]]) for j in near}

@@ -17,20 +17,22 @@ from time import perf_counter_ns
 from typing import Any, ClassVar, NamedTuple, Protocol
 
 from ...errors import ConfigError
-from ..fields import flag, quantity
+from ..fields import choice, flag, quantity
 from ..inverter import VECTOR_STATES, active_then_zero, clarke, vector_voltages
 from ..machines import Machine
-from ..machines.pmsm import PMSMCoefficients, pmsm_predict_current
+from ..machines.pmsm import PMSMCoefficients, pmsm_exact_step, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
 
 __all__ = [
     "AFTER",
     "NO_EFFORT",
+    "PREDICTIONS",
     "SWITCHABLE",
     "Controller",
     "check_horizon",
     "horizon_field",
     "parse_switch",
+    "prediction_field",
     "SwitchingEffort",
     "lambda_sw_field",
     "pmsm_predicted",
@@ -42,13 +44,34 @@ __all__ = [
 ]
 
 
-def pmsm_predicted(c: PMSMCoefficients, ts: float, state: State, u_ab: complex) -> State:
+def pmsm_predicted(
+    c: PMSMCoefficients, ts: float, state: State, u_ab: complex, *, rotor_motion: bool = False
+) -> State:
     """A PMSM family's :meth:`Controller._predict`: the measured current and angle one period
-    ahead under ``u_ab`` by the model ``c``."""
-    i, the = pmsm_predict_current(
-        c, ts, complex(state.i_alpha, state.i_beta), state.theta_e, state.omega_m, u_ab
-    )
+    ahead under ``u_ab`` by the model ``c`` — forward Euler in dq, or with ``rotor_motion`` the
+    period solved exactly at the measured speed (:func:`~..machines.pmsm.pmsm_exact_step`)."""
+    i_ab, omega_m = complex(state.i_alpha, state.i_beta), state.omega_m
+    exact = pmsm_exact_step(c, ts, c.p * omega_m) if rotor_motion else None
+    i, the = pmsm_predict_current(c, ts, i_ab, state.theta_e, omega_m, u_ab, exact=exact)
     return state._replace(i_alpha=i.real, i_beta=i.imag, theta_e=the % TWO_PI)
+
+
+#: how a PMSM finite-control-set family predicts the end of a period
+#: (docs/physics.md#predicting-the-pmsm-over-a-period)
+PREDICTIONS = ("frozen_rotor", "rotor_motion")
+
+
+def prediction_field() -> Any:
+    """The ``prediction`` field of the PMSM finite-control-set families (``mptc_pmsm``,
+    ``mpc_pmsm``): paper 001's model with the rotor frozen over the period, or the rotor's
+    motion through it."""
+    return choice(
+        "the model's period: frozen_rotor (paper 001: the currents at the period's end taken "
+        "at the rotor angle of its start, or forward Euler in dq for direct_mpc) or "
+        "rotor_motion (the rotor turning through the period at the measured speed)",
+        PREDICTIONS,
+        default="frozen_rotor",
+    )
 
 
 def delay_compensation() -> Any:

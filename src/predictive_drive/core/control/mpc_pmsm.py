@@ -13,7 +13,9 @@ amplitude I_s = |T*|/k_t, the MTPA angle of paper 002 eq 10 (or i_d = 0) — and
 over the switch positions u(ℓ) ∈ {0, 1}³ of the three legs (000 and 111 apart: ‖Δu‖² counts
 commutations), I_b the rated current (rated torque / k_t): J is per unit. The model is the
 family's own: the dq currents stepped by forward Euler at the speed of the sample, the rotor
-turning ω_e·Ts a period, each period's voltage turned into dq at its middle — linear,
+turning ω_e·Ts a period, each period's voltage turned into dq at its middle (``prediction:
+rotor_motion``: each period solved exactly at that speed,
+docs/physics.md#predicting-the-pmsm-over-a-period) — linear,
 i(ℓ+1) = A i(ℓ) + B_ℓ u(ℓ) + c — so J is, up to a constant, (U - U_unc)ᵀ H (U - U_unc) with
 H = ΥᵀΥ + λ_u SᵀS over the stacked U. With H = VᵀV (V upper triangular, from the Cholesky
 factor) it is the integer least-squares problem min ‖V·U_unc - V·U‖², solved exactly by
@@ -39,9 +41,16 @@ from ...errors import ConfigError
 from ..fields import check_fields, choice, quantity
 from ..inverter import park, state_to_vector
 from ..machines import Machine
-from ..machines.pmsm import PMSM, PMSMCoefficients
+from ..machines.pmsm import PMSM, PMSMCoefficients, PMSMStep, pmsm_exact_step
 from ..signals import Command, PhasePulses, Reference, State, new_record
-from .base import Controller, check_horizon, delay_compensation, horizon_field, pmsm_predicted
+from .base import (
+    Controller,
+    check_horizon,
+    delay_compensation,
+    horizon_field,
+    pmsm_predicted,
+    prediction_field,
+)
 from .kernels import compiled_sphere_decoder, kernel_unavailable
 from .mtpa import formula_angle
 from .search import SearchResult, sphere_decode
@@ -112,6 +121,7 @@ class MPCParams:
         "numba is installed); every one decides the same, bit for bit", DECODERS,
         default="auto",
     )  # fmt: skip
+    prediction: str = prediction_field()
     delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:
@@ -153,16 +163,22 @@ def current_problem(
     lambda_u: float,
     u_prev: tuple[int, int, int],
     horizon: int,
+    exact: PMSMStep | None = None,
 ) -> QuadraticProblem:
     """The cost J over ``horizon`` periods from the dq current ``i_dq`` (A) at rotor angle
-    ``theta_e`` (rad) and electrical speed ``w_e`` (rad/s) as an integer least-squares problem."""
+    ``theta_e`` (rad) and electrical speed ``w_e`` (rad/s) as an integer least-squares problem:
+    the model forward Euler in dq, or ``exact`` (:func:`~..machines.pmsm.pmsm_exact_step` at
+    ``w_e``: the rotor's motion through each period)."""
     n = horizon
     lag, cols, below, s, sts = _structure(n)
     # A = I + Ts·F (forward Euler, ω frozen) and c, as plain floats: n powers and the free
     # response are n small products, cheaper in Python than in numpy calls
-    a11, a12 = 1.0 - ts * c.r_s * c.inv_l_d, ts * w_e * c.l_q * c.inv_l_d
-    a21, a22 = -ts * w_e * c.l_d * c.inv_l_q, 1.0 - ts * c.r_s * c.inv_l_q
-    cq = -ts * w_e * c.psi_f * c.inv_l_q
+    if exact is None:
+        a11, a12 = 1.0 - ts * c.r_s * c.inv_l_d, ts * w_e * c.l_q * c.inv_l_d
+        a21, a22 = -ts * w_e * c.l_d * c.inv_l_q, 1.0 - ts * c.r_s * c.inv_l_q
+        cd, cq = 0.0, -ts * w_e * c.psi_f * c.inv_l_q
+    else:
+        a11, a12, a21, a22, *_, cd, cq = exact
     powers = [(1.0, 0.0, 0.0, 1.0)]
     free: list[float] = []
     x, y = i_dq.real, i_dq.imag
@@ -176,15 +192,23 @@ def current_problem(
                 a21 * p12 + a22 * p22,
             )
         )
-        x, y = a11 * x + a12 * y, a21 * x + a22 * y + cq
+        x, y = a11 * x + a12 * y + cd, a21 * x + a22 * y + cq
         free += (x, y)
     pw = np.array(powers[:n]).reshape(n, 2, 2)
-    # B_ℓ = Ts·diag(1/L_d, 1/L_q)·Park(θ at the period's middle)·U_dc·legs
-    mid = theta_e + (np.arange(n) + 0.5) * (w_e * ts)
-    co, si = np.cos(mid)[:, None], np.sin(mid)[:, None]
     l0, l1 = _LEGS
-    gd, gq = ts * u_dc * c.inv_l_d, ts * u_dc * c.inv_l_q
-    b = np.stack([gd * (co * l0 + si * l1), gq * (co * l1 - si * l0)], 1)  # (n, 2, 3)
+    if exact is None:
+        # B_ℓ = Ts·diag(1/L_d, 1/L_q)·Park(θ at the period's middle)·U_dc·legs
+        mid = theta_e + (np.arange(n) + 0.5) * (w_e * ts)
+        co, si = np.cos(mid)[:, None], np.sin(mid)[:, None]
+        gd, gq = ts * u_dc * c.inv_l_d, ts * u_dc * c.inv_l_q
+        b = np.stack([gd * (co * l0 + si * l1), gq * (co * l1 - si * l0)], 1)  # (n, 2, 3)
+    else:
+        # B_ℓ = G·Park(θ at the period's start)·U_dc·legs
+        start = theta_e + np.arange(n) * (w_e * ts)
+        co, si = np.cos(start)[:, None], np.sin(start)[:, None]
+        ud, uq = u_dc * (co * l0 + si * l1), u_dc * (co * l1 - si * l0)
+        g = exact
+        b = np.stack([g.g11 * ud + g.g12 * uq, g.g21 * ud + g.g22 * uq], 1)
     blocks = (pw[:, None] @ b[None])[lag, cols] * below  # block (ℓ, m) = A^{ℓ-m} B_m
     ups = blocks.transpose(0, 2, 1, 3).reshape(2 * n, 3 * n) / i_base
     e0 = (np.tile([i_ref.real, i_ref.imag], n) - np.array(free)) / i_base
@@ -277,10 +301,11 @@ class MPCController(Controller):
         self._nodes = 0
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
         self._decode = _decoder(params.decoder)
+        self._rotor_motion = params.prediction == "rotor_motion"
         super().__init__(params, ts=ts)
 
     def _predict(self, state: State, u_ab: complex) -> State:
-        return pmsm_predicted(self._coef, self.ts, state, u_ab)
+        return pmsm_predicted(self._coef, self.ts, state, u_ab, rotor_motion=self._rotor_motion)
 
     def _observe(self, state: State) -> None:
         c = self._coef
@@ -299,18 +324,20 @@ class MPCController(Controller):
         theta = formula_angle(i_s, c.psi_f, c.l_d, c.l_q) if formula else 0.0
         self.theta = theta
         self.i_ref = complex(-i_s * math.sin(theta), sign * i_s * math.cos(theta))
+        w_e = c.p * state.omega_m
         problem = current_problem(
             c,
             ts=self.ts,
             i_dq=self.i_dq,
             theta_e=state.theta_e,
-            w_e=c.p * state.omega_m,
+            w_e=w_e,
             u_dc=state.u_dc,
             i_ref=self.i_ref,
             i_base=self._i_base,
             lambda_u=self.params.lambda_u,
             u_prev=self.switches,
             horizon=self.horizon,
+            exact=pmsm_exact_step(c, self.ts, w_e) if self._rotor_motion else None,
         )
         plan = law.plan
         guess = (*plan[3:], *plan[-3:]) if len(plan) == 3 * self.horizon else ()
