@@ -318,7 +318,7 @@ def test_direct_mpc_equals_exhaustive_enumeration(horizon, prediction):
         best = cost.min()
         near = np.flatnonzero(cost <= best + 1e-9 * (1.0 + best))
         firsts = {tuple(STATES8[seqs[j, 0]]) for j in near}
-        assert found.sequence[:3] in firsts, (i, ref, theta, w_e, lam_u, prev)
+        assert problem.in_time(found.sequence)[:3] in firsts, (i, ref, theta, w_e, lam_u, prev)
         # the decoder's distance is the cost less the problem's constant
         assert found.cost + problem.constant == pytest.approx(best, rel=1e-7, abs=1e-9)
         if compiled is not None:
@@ -372,3 +372,121 @@ def test_direct_mpc_breaks_exact_ties_to_the_smallest_sequence(horizon, lam_u):
         u_ab = 312.0 * clarke(cmd.duty_a, cmd.duty_b, cmd.duty_c)
         i_ab, theta = pmsm_predict_current(c, TS, i_ab, theta, w_m, u_ab)
     assert ties >= 5  # the rule was exercised
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 4, 7])
+def test_compiled_direct_mpc_is_the_reference_bit_for_bit(horizon):
+    """direct_mpc's decision compiled (kernels.compiled_direct_mpc: the problem and the
+    decoder) against the reference (mpc_pmsm.solve: mpc_pmsm.problem in plain floats and
+    search.sphere_decode), both predictions, with and without a guess (the shifted optimum),
+    with budgets that stop it and one that does not: the same V and ū to the bit, the same
+    sequence, distance, node count and completion."""
+    kernels = pytest.importorskip("predictive_drive.core.control.kernels")
+    if kernels.kernel_unavailable() is not None:
+        pytest.skip(kernels.kernel_unavailable())
+    from predictive_drive.core.control.mpc_pmsm import period_model, problem, solve
+    from predictive_drive.core.machines.pmsm import pmsm_exact_step
+
+    compiled, compiled_problem = kernels.compiled_direct_mpc(), kernels.compiled_problem()
+    c = PMSMCoefficients.of(IPMSM)
+    i_base = 15.0 / (1.5 * 3 * 0.2264)
+    rng = random.Random(40 + horizon)
+    stopped = 0
+    for _ in range(150):
+        w_e = rng.uniform(-400, 400)
+        exact = pmsm_exact_step(c, TS, w_e) if rng.random() < 0.5 else None
+        model = period_model(c, TS, w_e, exact)
+        state = (rng.uniform(-10, 5), rng.uniform(-25, 25), rng.uniform(0, 2 * math.pi),
+                 w_e * TS, 312.0, rng.uniform(-10, 5), rng.uniform(-25, 25))  # fmt: skip
+        lam, prev = rng.choice([1e-4, 0.01, 0.1]), tuple(int(x) for x in STATES8[rng.randrange(8)])
+        v, ubar, _ = problem(model, horizon, state, i_base, lam, prev)
+        cv, cu = compiled_problem(model, horizon, state, i_base, lam, prev)
+        assert np.array_equal(cv, np.array(v)) and np.array_equal(cu, np.array(ubar))
+        first = solve(model, horizon, state, i_base, lam, prev, (), 0)
+        shifted = first.sequence[3:] + first.sequence[:3]
+        for guess in ((), shifted):
+            for budget in (0, 3 * horizon + 2, 40):
+                want = solve(model, horizon, state, i_base, lam, prev, guess, budget)
+                got = compiled(model, horizon, state, i_base, lam, prev, guess, budget)
+                assert got == want, (guess, budget)
+                stopped += not want.complete
+    assert stopped > 50 or horizon == 1  # the budgets were reached
+
+
+def _im_prediction(rng, coef, lam, volts):
+    psi = 0.71 * cmath.exp(1j * rng.uniform(-math.pi, math.pi)) * rng.uniform(0.95, 1.05)
+    i = rng.uniform(0, 8) * cmath.exp(1j * rng.uniform(-math.pi, math.pi))
+    lam_sw = rng.choice([0.0, 0.05, 0.3])
+    m = IMPrediction(coef, TS, lam, False, SwitchingEffort(lam_sw) if lam_sw else None)
+    m.prepare(i, psi, rng.uniform(-300, 300), volts)
+    m.switching(STATE_OF[rng.randrange(8)])
+    return m, rng.uniform(-7.5, 7.5), 0.71
+
+
+def _pmsm_prediction(rng, c, volts):
+    i_ab = complex(rng.uniform(-8, 4), rng.uniform(-25, 25)) * cmath.exp(1j * rng.uniform(0, 7))
+    theta, w_e = rng.uniform(0, 2 * math.pi), rng.uniform(-400, 400)
+    lam_sw = rng.choice([0.0, 0.01, 0.05])
+    m = PMSMPrediction(c, TS, 0.75, 0.15, SwitchingEffort(lam_sw) if lam_sw else None)
+    m.rotor_motion = rng.random() < 0.5
+    m.prepare(i_ab.real, i_ab.imag, theta, 312.0, w_e)
+    m.theta_e, m.w_e, m.volts = theta, w_e, volts
+    m.switching(STATE_OF[rng.randrange(8)])
+    return m, rng.uniform(-30, 30), rng.uniform(0.2, 0.3)
+
+
+@pytest.mark.parametrize("horizon", [2, 3, 5])
+@pytest.mark.parametrize("family", ["mptc_im", "mptc_pmsm"])
+def test_compiled_branch_and_bound_is_the_reference_bit_for_bit(im, family, horizon):
+    """mptc's branch and bound compiled (kernels.compiled_branch_and_bound, each family's
+    stages) against search.branch_and_bound of the family's horizon_stages: the same plan,
+    cost, node count and completion, from random states, with and without a guess and a
+    switching effort, with budgets that stop it and none; the PMSM with both predictions."""
+    kernels = pytest.importorskip("predictive_drive.core.control.kernels")
+    if kernels.kernel_unavailable() is not None:
+        pytest.skip(kernels.kernel_unavailable())
+    compiled = kernels.compiled_branch_and_bound()
+    s = make_strategy(family, "mptc")
+    rng = random.Random(50 + horizon)
+    stopped = 0
+    for _ in range(200 if horizon < 5 else 40):
+        if family == "mptc_im":
+            m, t_ref, psi_ref = _im_prediction(rng, im[0], im[1], tuple(vector_voltages(582.0)))
+        else:
+            m, t_ref, psi_ref = _pmsm_prediction(
+                rng, PMSMCoefficients.of(IPMSM), vector_voltages(312.0)
+            )
+        m.horizon = horizon
+        plan = tuple(rng.randrange(7) for _ in range(horizon)) if rng.random() < 0.5 else ()
+        for budget in (0, 7 * horizon + 7, 140):
+            m.budget = budget
+            out = []
+            for search in (None, compiled):
+                m.compiled = search
+                s.plan = plan
+                out.append((s.decide(m, t_ref, psi_ref), s.found))
+            assert out[0] == out[1], budget
+            stopped += not out[0][1].complete
+    assert stopped > 20  # the budgets were reached
+
+
+def test_a_budget_applies_the_best_so_far_and_report_counts_the_steps(tmp_path, capsys):
+    """direct_mpc at N = 10 with node_budget 1,500: a step whose search ran out records
+    suboptimal = 1 and exactly 1,500 nodes, the others 0 and at most that; report says
+    "suboptimal steps: n of N" with the recording's count. Every decision is the decoder's own
+    (held bit for bit by test_compiled_direct_mpc_is_the_reference_bit_for_bit)."""
+    from predictive_drive.api.report import details_of, evaluate, report
+    from predictive_drive.api.run import run
+    from predictive_drive.cli.common import print_recording
+
+    settings = {"torque_controller.horizon": 10, "torque_controller.node_budget": 1500}
+    r = run("ipmsm_steady_mpc", engine="inprocess", duration=0.05, out=tmp_path / "b",
+            settings=settings)  # fmt: skip
+    ev = evaluate(r.bag)
+    sub, cal = ev.trace.col("command", "suboptimal"), ev.trace.col("command", "cal")
+    assert set(np.unique(sub)) == {0.0, 1.0} and (sub == 1.0).sum() > 20
+    assert np.all(cal[sub == 1.0] == 1500) and np.all(cal[sub == 0.0] <= 1500)
+    d = details_of(ev)
+    assert (d.suboptimal_steps, d.searched_steps) == (int((sub == 1.0).sum()), len(sub))
+    print_recording(report(r.bag))
+    assert f"suboptimal steps: {d.suboptimal_steps} of {len(sub)}" in capsys.readouterr().out

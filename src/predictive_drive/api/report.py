@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..core.analysis import LoadStep, load_steps
 from ..core.machines import Machine
 from ..core.metrics import Metrics, compute_metrics
@@ -169,6 +171,10 @@ class RecordingDetails:
     load_steps: list[LoadStep] = field(default_factory=list)
     #: the nodes of the user's own: how each was started, the parameters its section gave it
     own_nodes: list[OwnNode] = field(default_factory=list)
+    #: the steps a long horizon's search decided, and those of them whose node budget ran out
+    #: (the best sequence found so far applied: docs/physics.md#a-budget-per-step)
+    searched_steps: int = 0
+    suboptimal_steps: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -176,6 +182,8 @@ class RecordingDetails:
             "parameter_events": [dataclasses.asdict(e) for e in self.parameter_events],
             "outcome": self.outcome,
             "own_nodes": [dataclasses.asdict(n) for n in self.own_nodes],
+            "searched_steps": self.searched_steps,
+            "suboptimal_steps": self.suboptimal_steps,
         }
         if self.load_steps:
             out["load_steps"] = [
@@ -188,6 +196,7 @@ class RecordingDetails:
 def details_of(ev: Evaluation) -> RecordingDetails:
     """The :class:`RecordingDetails` of a recording read back."""
     ts = ev.trace.ts
+    suboptimal = ev.trace.col("command", "suboptimal")
     return RecordingDetails(
         strategies=[
             SpanTimes(s.strategy, s.first, s.last, s.first * ts, (s.last + 1) * ts)
@@ -199,6 +208,8 @@ def details_of(ev: Evaluation) -> RecordingDetails:
         outcome=ev.info.custom.get("outcome", ""),
         load_steps=steps_of(ev),
         own_nodes=ev.info.own_nodes,
+        searched_steps=int(np.isfinite(suboptimal).sum()),
+        suboptimal_steps=int((suboptimal == 1.0).sum()),
     )
 
 

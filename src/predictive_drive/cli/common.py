@@ -208,6 +208,12 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         util = " ".join(f"V{i} {100 * u:.1f}%" for i, u in enumerate(m.utilization))
         print(f"  {'vectors':<11}{util}   {METRICS['utilization'].description}")
     d = r.details
+    if d.searched_steps:
+        print(
+            f"  {'search':<11}suboptimal steps: {d.suboptimal_steps} of {d.searched_steps}   "
+            "steps whose search ran out of its node budget and applied the best sequence "
+            "found so far (torque_controller.node_budget)"
+        )
     if len(d.strategies) > 1:
         for sp in d.strategies:
             print(

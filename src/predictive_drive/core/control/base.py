@@ -12,9 +12,11 @@ reference turned into three duties (SVPWM); the base does not care which.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from time import perf_counter_ns
-from typing import Any, ClassVar, NamedTuple, Protocol
+from typing import Any, ClassVar, NamedTuple, Protocol, TypeVar
+
+import numpy as np
 
 from ...errors import ConfigError
 from ..fields import choice, flag, quantity
@@ -22,10 +24,18 @@ from ..inverter import VECTOR_STATES, active_then_zero, clarke, vector_voltages
 from ..machines import Machine
 from ..machines.pmsm import PMSMCoefficients, pmsm_exact_step, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
+from .kernels import kernel_unavailable
 
 __all__ = [
     "AFTER",
+    "AFTER_TABLE",
+    "NO_EFFORT_TABLE",
     "NO_EFFORT",
+    "budget_field",
+    "compiled",
+    "rows",
+    "search_field",
+    "SEARCHES",
     "PREDICTIONS",
     "SWITCHABLE",
     "Controller",
@@ -152,6 +162,55 @@ def horizon_field(strategies: str, maximum: int) -> Any:
     )
 
 
+def budget_field(unit: str, default: int) -> Any:
+    """The ``node_budget`` field of a family with long horizons: the most ``unit`` a step's
+    search evaluates (docs/physics.md#a-budget-per-step)."""
+    return quantity(
+        f"the most {unit} a step's search evaluates once it holds a complete sequence; "
+        "then the best found so far is applied and the step counted suboptimal (0: no limit)",
+        ge=0,
+        integer=True,
+        default=default,
+    )
+
+
+#: which implementation of a long horizon's search runs (:mod:`.kernels`)
+SEARCHES = ("auto", "compiled", "python")
+
+
+def search_field(what: str) -> Any:
+    """The field that picks a long horizon's search: ``what`` compiled (numba), in Python (the
+    reference) or auto (compiled where numba is installed); all decide alike, bit for bit."""
+    return choice(
+        f"{what}: compiled (numba), python (the reference), or auto (compiled where numba is "
+        "installed); every one decides the same, bit for bit",
+        SEARCHES,
+        default="auto",
+    )
+
+
+_T = TypeVar("_T")
+
+
+def compiled(name: str, key: str, factory: Callable[[], _T]) -> _T | None:
+    """The compiled search ``factory`` makes where ``name`` (one of :data:`SEARCHES`) asks for
+    it and numba is installed; None for the Python reference; ConfigError (naming
+    ``torque_controller.<key>``) for ``compiled`` without numba."""
+    if name == "python":
+        return None
+    reason = kernel_unavailable()
+    if reason is None:
+        return factory()
+    if name == "compiled":
+        raise ConfigError(f"torque_controller.{key}: compiled, but {reason}")
+    return None
+
+
+def rows(values: Sequence[complex]) -> np.ndarray:
+    """Complex numbers as rows (real, imaginary): how a compiled search takes them."""
+    return np.array([(v.real, v.imag) for v in values])
+
+
 def check_horizon(params: Any, strategies: tuple[str, ...]) -> None:
     """ConfigError if ``params`` (a family's settings) give a horizon to a law without one."""
     if params.horizon > 1 and params.strategy not in strategies:
@@ -187,6 +246,9 @@ AFTER = tuple(
         VECTOR_STATES[n]) for n in range(7))
     for c in range(8)
 )  # fmt: skip
+#: :data:`AFTER` and no switching effort, as a compiled search takes them
+AFTER_TABLE = np.array(AFTER, np.int64)
+NO_EFFORT_TABLE = np.zeros((8, 7))
 
 
 class Strategy(Protocol):
@@ -329,12 +391,19 @@ class Controller:
         raise NotImplementedError
 
     def command(
-        self, state: State, pulses: PhasePulses, diagnostics: tuple[float, ...], compute_ns: float
+        self,
+        state: State,
+        pulses: PhasePulses,
+        diagnostics: tuple[float, ...],
+        compute_ns: float,
+        suboptimal: float = NAN,
     ) -> Command:
         """The command record: the diagnostics are the command's
-        :data:`~predictive_drive.core.signals.COMMAND_DIAGNOSTICS`, in that order."""
+        :data:`~predictive_drive.core.signals.COMMAND_DIAGNOSTICS` but ``suboptimal`` (a
+        search's budget, NaN: no search), in that order."""
         return new_record(
-            Command, (state.k, state.t, *pulses, self._index, *diagnostics, compute_ns)
+            Command,
+            (state.k, state.t, *pulses, self._index, *diagnostics, suboptimal, compute_ns),
         )
 
     def decision_inputs(self, states: list[State]) -> list[Any] | None:
@@ -366,6 +435,8 @@ class Decision(NamedTuple):
     fraction: float  #: share of Ts the vector is applied, 0..1 (rest: zero vector)
     t_u: float  #: raw deadbeat time, s (NaN if none was computed)
     cal: int  #: predictions evaluated
+    #: a long horizon's search: 1.0 if its budget ran out, 0.0 if it finished; NaN: none
+    suboptimal: float = NAN
 
 
 class VectorController(Controller):
@@ -392,7 +463,7 @@ class VectorController(Controller):
         """Hook after the decision (the IM integrates its flux estimate with the applied voltage)."""
 
     def _command(self, d: Decision, state: State, compute_ns: float) -> Command:
-        vector, fraction, t_u, cal = d
+        vector, fraction, t_u, cal, suboptimal = d
         pulses, self.switches = active_then_zero(vector, fraction, self.switches)
         self._applied(d, state)
         # built in one piece (not through command()): this is every MPTC step's hot path
@@ -415,6 +486,7 @@ class VectorController(Controller):
                 NAN,
                 NAN,
                 NAN,
+                suboptimal,
                 compute_ns,
             ),
         )

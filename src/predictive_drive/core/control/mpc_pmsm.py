@@ -32,26 +32,28 @@ import cmath
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 import numpy as np
 
-from ...errors import ConfigError
 from ..fields import check_fields, choice, quantity
 from ..inverter import park, state_to_vector
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients, PMSMStep, pmsm_exact_step
 from ..signals import Command, PhasePulses, Reference, State, new_record
 from .base import (
+    SEARCHES,
     Controller,
+    budget_field,
     check_horizon,
+    compiled,
     delay_compensation,
     horizon_field,
     pmsm_predicted,
     prediction_field,
+    search_field,
 )
-from .kernels import compiled_sphere_decoder, kernel_unavailable
+from .kernels import compiled_direct_mpc
 from .mtpa import formula_angle
 from .search import SearchResult, sphere_decode
 
@@ -74,10 +76,11 @@ MAX_HORIZON = 12
 #: the current references' angle: paper 002 eq 10's MTPA, or i_d = 0
 MTPA_LAWS = ("formula", "zero_d")
 #: which sphere decoder runs (:mod:`.kernels`)
-DECODERS = ("auto", "compiled", "python")
+DECODERS = SEARCHES
 #: (S_a, S_b, S_c) → u_αβ per volt of U_dc: (2/3)(S_a + a S_b + a² S_c), as two real rows
-_LEGS = np.array(
-    [[2.0 / 3.0, -1.0 / 3.0, -1.0 / 3.0], [0.0, 1.0 / math.sqrt(3.0), -1.0 / math.sqrt(3.0)]]
+_LEGS_ROWS = (
+    (2.0 / 3.0, -1.0 / 3.0, -1.0 / 3.0),
+    (0.0, 1.0 / math.sqrt(3.0), -1.0 / math.sqrt(3.0)),
 )
 
 
@@ -116,12 +119,9 @@ class MPCParams:
         "current angle of the references: formula (paper 002 eq 10) or zero_d", MTPA_LAWS,
         default="formula",
     )  # fmt: skip
-    decoder: str = choice(
-        "the sphere decoder: compiled (numba), python (the reference), or auto (compiled where "
-        "numba is installed); every one decides the same, bit for bit", DECODERS,
-        default="auto",
-    )  # fmt: skip
+    decoder: str = search_field("the sphere decoder")
     prediction: str = prediction_field()
+    node_budget: int = budget_field("tree nodes", 0)
     delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:
@@ -132,22 +132,50 @@ class MPCParams:
 @dataclass(frozen=True)
 class QuadraticProblem:
     """One decision's integer least-squares problem (see the module's text): V (upper
-    triangular) and ū = V·U_unc, and the constant the cost differs from ‖ū - V·U‖² by."""
+    triangular) and ū = V·U_unc, and the constant the cost differs from ‖ū - V·U‖² by.
+
+    U stacks the switch positions in reverse order of time — u(N-1)_c, u(N-1)_b, u(N-1)_a, …,
+    u(0)_c, u(0)_b, u(0)_a — so the decoder, which fixes the last component first, decides
+    the first period first (:meth:`in_time` turns a solution back)."""
 
     v: np.ndarray
     ubar: np.ndarray
     constant: float
 
+    @staticmethod
+    def in_time(sequence: tuple[int, ...]) -> tuple[int, ...]:
+        """A solution U as switch positions in order of time: u(0)_a, u(0)_b, u(0)_c, …"""
+        return sequence[::-1]
 
-@cache
-def _structure(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """What a horizon of n periods fixes: for block (ℓ, m) of Υ the power ℓ - m of A it takes
-    (clipped), the block's input m and whether it is below the diagonal; S (the differences of
-    the stacked inputs) and SᵀS."""
-    lag = np.arange(n)[:, None] - np.arange(n)[None, :]
-    m = np.broadcast_to(np.arange(n)[None, :], (n, n))
-    s = np.eye(3 * n) - np.eye(3 * n, k=-3)
-    return np.clip(lag, 0, None), m, (lag >= 0)[..., None, None], s, s.T @ s
+
+#: (A: a11, a12, a21, a22; c: c_d, c_q; G: g11, g12, g21, g22; the share of the period at
+#: whose angle the voltage is turned into dq): the model of one period,
+#: i(ℓ+1) = A·i(ℓ) + G·u_dq(ℓ) + c (:func:`period_model`)
+Model = tuple[float, float, float, float, float, float, float, float, float, float, float]
+#: (i_d, i_q, θ_e, the rotor's turn a period ω_e·Ts, U_dc, i_d*, i_q*): where a decision starts
+Start = tuple[float, float, float, float, float, float, float]
+
+
+def period_model(c: PMSMCoefficients, ts: float, w_e: float, exact: PMSMStep | None) -> Model:
+    """The model of one period at electrical speed ``w_e``: forward Euler in dq (A = I + Ts·F,
+    G = Ts·diag(1/L_d, 1/L_q), the voltage at the period's middle angle), or the exact period
+    ``exact`` (the voltage at its start angle)."""
+    if exact is None:
+        return (
+            1.0 - ts * c.r_s * c.inv_l_d,
+            ts * w_e * c.l_q * c.inv_l_d,
+            -ts * w_e * c.l_d * c.inv_l_q,
+            1.0 - ts * c.r_s * c.inv_l_q,
+            0.0,
+            -ts * w_e * c.psi_f * c.inv_l_q,
+            ts * c.inv_l_d,
+            0.0,
+            0.0,
+            ts * c.inv_l_q,
+            0.5,
+        )
+    x = exact
+    return (x.a11, x.a12, x.a21, x.a22, x.f_d, x.f_q, x.g11, x.g12, x.g21, x.g22, 0.0)
 
 
 def current_problem(
@@ -169,65 +197,101 @@ def current_problem(
     ``theta_e`` (rad) and electrical speed ``w_e`` (rad/s) as an integer least-squares problem:
     the model forward Euler in dq, or ``exact`` (:func:`~..machines.pmsm.pmsm_exact_step` at
     ``w_e``: the rotor's motion through each period)."""
-    n = horizon
-    lag, cols, below, s, sts = _structure(n)
-    # A = I + Ts·F (forward Euler, ω frozen) and c, as plain floats: n powers and the free
-    # response are n small products, cheaper in Python than in numpy calls
-    if exact is None:
-        a11, a12 = 1.0 - ts * c.r_s * c.inv_l_d, ts * w_e * c.l_q * c.inv_l_d
-        a21, a22 = -ts * w_e * c.l_d * c.inv_l_q, 1.0 - ts * c.r_s * c.inv_l_q
-        cd, cq = 0.0, -ts * w_e * c.psi_f * c.inv_l_q
-    else:
-        a11, a12, a21, a22, *_, cd, cq = exact
-    powers = [(1.0, 0.0, 0.0, 1.0)]
-    free: list[float] = []
-    x, y = i_dq.real, i_dq.imag
-    for _ in range(n):
-        p11, p12, p21, p22 = powers[-1]
-        powers.append(
-            (
-                a11 * p11 + a12 * p21,
-                a11 * p12 + a12 * p22,
-                a21 * p11 + a22 * p21,
-                a21 * p12 + a22 * p22,
-            )
-        )
+    model = period_model(c, ts, w_e, exact)
+    state = (i_dq.real, i_dq.imag, theta_e, w_e * ts, u_dc, i_ref.real, i_ref.imag)
+    v, ubar, constant = problem(model, horizon, state, i_base, lambda_u, u_prev)
+    return QuadraticProblem(np.array(v), np.array(ubar), constant)
+
+
+def problem(
+    model: Model, n: int, state: Start, i_base: float, lam: float, prev: tuple[int, int, int]
+) -> tuple[list[list[float]], list[float], float]:
+    """(V, ū, constant) of :class:`QuadraticProblem` over ``n`` periods from ``state`` (see
+    :data:`Start`), in plain floats: the reference the compiled kernel (:mod:`.kernels`)
+    repeats operation for operation."""
+    a11, a12, a21, a22, cd, cq, g11, g12, g21, g22, share = model
+    i_d, i_q, theta, turn, u_dc, r_d, r_q = state
+    size = 3 * n
+    l0, l1 = _LEGS_ROWS
+    # A^k, k < n; the free response's error e0 = (i* - i_free)/I_b, rows 2ℓ (d) and 2ℓ+1 (q)
+    pw = [(1.0, 0.0, 0.0, 1.0)]
+    for _ in range(n - 1):
+        p11, p12, p21, p22 = pw[-1]
+        pw.append((a11 * p11 + a12 * p21, a11 * p12 + a12 * p22,
+                   a21 * p11 + a22 * p21, a21 * p12 + a22 * p22))  # fmt: skip
+    e0 = [0.0] * (2 * n)
+    x, y = i_d, i_q
+    for ell in range(n):
         x, y = a11 * x + a12 * y + cd, a21 * x + a22 * y + cq
-        free += (x, y)
-    pw = np.array(powers[:n]).reshape(n, 2, 2)
-    l0, l1 = _LEGS
-    if exact is None:
-        # B_ℓ = Ts·diag(1/L_d, 1/L_q)·Park(θ at the period's middle)·U_dc·legs
-        mid = theta_e + (np.arange(n) + 0.5) * (w_e * ts)
-        co, si = np.cos(mid)[:, None], np.sin(mid)[:, None]
-        gd, gq = ts * u_dc * c.inv_l_d, ts * u_dc * c.inv_l_q
-        b = np.stack([gd * (co * l0 + si * l1), gq * (co * l1 - si * l0)], 1)  # (n, 2, 3)
-    else:
-        # B_ℓ = G·Park(θ at the period's start)·U_dc·legs
-        start = theta_e + np.arange(n) * (w_e * ts)
-        co, si = np.cos(start)[:, None], np.sin(start)[:, None]
-        ud, uq = u_dc * (co * l0 + si * l1), u_dc * (co * l1 - si * l0)
-        g = exact
-        b = np.stack([g.g11 * ud + g.g12 * uq, g.g21 * ud + g.g22 * uq], 1)
-    blocks = (pw[:, None] @ b[None])[lag, cols] * below  # block (ℓ, m) = A^{ℓ-m} B_m
-    ups = blocks.transpose(0, 2, 1, 3).reshape(2 * n, 3 * n) / i_base
-    e0 = (np.tile([i_ref.real, i_ref.imag], n) - np.array(free)) / i_base
-    prev = np.zeros(3 * n)
-    prev[:3] = u_prev
-    h = ups.T @ ups + lambda_u * sts
-    f = ups.T @ e0 + lambda_u * (s.T @ prev)
-    v = np.linalg.cholesky(h).T
-    u_unc = np.linalg.solve(h, f)
-    constant = float(e0 @ e0 + lambda_u * (prev @ prev) - f @ u_unc)
-    return QuadraticProblem(v, v @ u_unc, constant)
+        e0[2 * ell] = (r_d - x) / i_base
+        e0[2 * ell + 1] = (r_q - y) / i_base
+    # Υ: current ℓ+1 (rows) per switch position of period m ≤ ℓ (columns, in U's order)
+    ups = [[0.0] * size for _ in range(2 * n)]
+    for m in range(n):
+        angle = theta + (m + share) * turn
+        co, si = math.cos(angle), math.sin(angle)
+        for j in range(3):
+            ud = u_dc * (co * l0[j] + si * l1[j])
+            uq = u_dc * (co * l1[j] - si * l0[j])
+            bd = (g11 * ud + g12 * uq) / i_base
+            bq = (g21 * ud + g22 * uq) / i_base
+            col = size - 1 - (3 * m + j)
+            for ell in range(m, n):
+                p11, p12, p21, p22 = pw[ell - m]
+                ups[2 * ell][col] = p11 * bd + p12 * bq
+                ups[2 * ell + 1][col] = p21 * bd + p22 * bq
+    # H = ΥᵀΥ + λ SᵀS and f = Υᵀe0 + λ Sᵀ[u_prev, 0, …]: each sum over the rows where both
+    # columns can be non-zero (from period max(m_i, m_k) on), in order
+    h = [[0.0] * size for _ in range(size)]
+    f = [0.0] * size
+    for i in range(size):
+        ti = size - 1 - i
+        mi = ti // 3
+        acc = 0.0
+        for r in range(2 * mi, 2 * n):
+            acc += ups[r][i] * e0[r]
+        f[i] = acc + lam * prev[ti] if mi == 0 else acc
+        for k in range(i, size):
+            tk = size - 1 - k
+            mk = tk // 3
+            acc = 0.0
+            for r in range(2 * (mi if mi > mk else mk), 2 * n):
+                acc += ups[r][i] * ups[r][k]
+            if ti == tk:
+                acc += lam * (1.0 if mi == n - 1 else 2.0)
+            elif ti - tk == 3 or tk - ti == 3:
+                acc -= lam
+            h[i][k] = h[k][i] = acc
+    # H = VᵀV (V upper triangular), ū = V⁻ᵀ f
+    v = [[0.0] * size for _ in range(size)]
+    ubar = [0.0] * size
+    for j in range(size):
+        acc = h[j][j]
+        for k in range(j):
+            acc -= v[k][j] * v[k][j]
+        d = math.sqrt(acc)
+        v[j][j] = d
+        for i in range(j + 1, size):
+            acc = h[j][i]
+            for k in range(j):
+                acc -= v[k][j] * v[k][i]
+            v[j][i] = acc / d
+        acc = f[j]
+        for k in range(j):
+            acc -= v[k][j] * ubar[k]
+        ubar[j] = acc / d
+    constant = 0.0
+    for r in range(2 * n):
+        constant += e0[r] * e0[r]
+    constant += lam * (prev[0] * prev[0] + prev[1] * prev[1] + prev[2] * prev[2])
+    for j in range(size):
+        constant -= ubar[j] * ubar[j]
+    return v, ubar, constant
 
 
-#: the two zero vectors: the same voltage, so the same currents
-_ZEROS = ((0, 0, 0), (1, 1, 1))
-
-
-def _commutations(a: tuple[int, ...], b: tuple[int, ...]) -> int:
-    return (a[0] != b[0]) + (a[1] != b[1]) + (a[2] != b[2])
+#: commutations between the switching states of codes a and b (S_a·4 + S_b·2 + S_c)
+_HAMMING = tuple(tuple(bin(a ^ b).count("1") for b in range(8)) for a in range(8))
+_STATES = tuple(((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8))
 
 
 def smallest_of_equal_cost(
@@ -242,40 +306,43 @@ def smallest_of_equal_cost(
     another road, rounded otherwise for each) cannot tell apart. Backwards, the fewest
     commutations to the horizon's end from each choice; forwards, the first choice (000 before
     111) that keeps to them."""
-    periods = [sequence[i : i + 3] for i in range(0, len(sequence), 3)]
-    options = [_ZEROS if p in _ZEROS else (p,) for p in periods]
-    if all(len(o) == 1 for o in options):
+    codes = [a * 4 + b * 2 + c for a, b, c in zip(sequence[::3], sequence[1::3], sequence[2::3])]
+    if 0 not in codes and 7 not in codes:
         return sequence
-    to_go: list[dict[tuple[int, ...], int]] = [{} for _ in periods]
-    to_go[-1] = {x: 0 for x in options[-1]}
-    for ell in range(len(periods) - 2, -1, -1):
-        after = to_go[ell + 1]
-        to_go[ell] = {
-            x: min(_commutations(x, y) + n for y, n in after.items()) for x in options[ell]
-        }
+    h = _HAMMING
+    # per period its two choices (the same code twice where it holds an active vector) and the
+    # fewest commutations after it for each
+    choices = [(0, 7) if c == 0 or c == 7 else (c, c) for c in codes]
+    to_go = [(0, 0)] * len(codes)
+    for ell in range(len(codes) - 2, -1, -1):
+        (na, nb), (ta, tb) = choices[ell + 1], to_go[ell + 1]
+        a, b = choices[ell]
+        to_go[ell] = (min(h[a][na] + ta, h[a][nb] + tb), min(h[b][na] + ta, h[b][nb] + tb))
     out: list[int] = []
-    last: tuple[int, ...] = u_prev
-    for ell, choices in enumerate(options):
-        costs = [_commutations(last, x) + to_go[ell][x] for x in choices]
-        last = choices[costs.index(min(costs))]
-        out += last
+    last = u_prev[0] * 4 + u_prev[1] * 2 + u_prev[2]
+    for (a, b), (ta, tb) in zip(choices, to_go):
+        last = a if h[last][a] + ta <= h[last][b] + tb else b
+        out += _STATES[last]
     return tuple(out)
 
 
-def _decoder(name: str) -> Any:
-    """The sphere decoder ``name`` asks for (:data:`DECODERS`); ConfigError for ``compiled``
-    where numba is missing."""
-    if name != "python":
-        reason = kernel_unavailable()
-        if reason is None:
-            return compiled_sphere_decoder()
-        if name == "compiled":
-            raise ConfigError(f"torque_controller.decoder: compiled, but {reason}")
-
-    def reference(v: Any, ubar: Any, guess: tuple[int, ...]) -> SearchResult:
-        return sphere_decode(v.tolist(), ubar.tolist(), guess)
-
-    return reference
+def solve(
+    model: Model,
+    n: int,
+    state: Start,
+    i_base: float,
+    lam: float,
+    prev: tuple[int, int, int],
+    guess: tuple[int, ...],
+    budget: int,
+) -> SearchResult:
+    """One decision: :func:`problem` decoded from ``guess`` (in U's order, or none) within
+    ``budget`` nodes (0: no limit), its sequence in order of time and of the equal-cost ones
+    the smallest (:func:`smallest_of_equal_cost`) — the reference the compiled kernel is held
+    to."""
+    v, ubar, _ = problem(model, n, state, i_base, lam, prev)
+    found = sphere_decode(v, ubar, guess, budget=budget)
+    return found._replace(sequence=smallest_of_equal_cost(found.sequence[::-1], prev))
 
 
 class MPCController(Controller):
@@ -300,7 +367,8 @@ class MPCController(Controller):
         self.theta = 0.0
         self._nodes = 0
         self.est_torque = self.est_flux = self.est_flux_angle = 0.0
-        self._decode = _decoder(params.decoder)
+        self._solve = compiled(params.decoder, "decoder", compiled_direct_mpc) or solve
+        self._complete = True
         self._rotor_motion = params.prediction == "rotor_motion"
         super().__init__(params, ts=ts)
 
@@ -324,26 +392,21 @@ class MPCController(Controller):
         theta = formula_angle(i_s, c.psi_f, c.l_d, c.l_q) if formula else 0.0
         self.theta = theta
         self.i_ref = complex(-i_s * math.sin(theta), sign * i_s * math.cos(theta))
-        w_e = c.p * state.omega_m
-        problem = current_problem(
-            c,
-            ts=self.ts,
-            i_dq=self.i_dq,
-            theta_e=state.theta_e,
-            w_e=w_e,
-            u_dc=state.u_dc,
-            i_ref=self.i_ref,
-            i_base=self._i_base,
-            lambda_u=self.params.lambda_u,
-            u_prev=self.switches,
-            horizon=self.horizon,
-            exact=pmsm_exact_step(c, self.ts, w_e) if self._rotor_motion else None,
+        ts, w_e, n = self.ts, c.p * state.omega_m, self.horizon
+        model = period_model(
+            c, ts, w_e, pmsm_exact_step(c, ts, w_e) if self._rotor_motion else None
         )
+        i, r = self.i_dq, self.i_ref
         plan = law.plan
-        guess = (*plan[3:], *plan[-3:]) if len(plan) == 3 * self.horizon else ()
-        found = self._decode(problem.v, problem.ubar, guess)
-        law.plan = smallest_of_equal_cost(found.sequence, self.switches)
+        # the last plan shifted, in U's order (time reversed)
+        guess = (*plan[3:], *plan[-3:])[::-1] if len(plan) == 3 * n else ()
+        found = self._solve(
+            model, n, (i.real, i.imag, state.theta_e, w_e * ts, state.u_dc, r.real, r.imag),
+            self._i_base, self.params.lambda_u, self.switches, guess, self.params.node_budget,
+        )  # fmt: skip
+        law.plan = found.sequence
         self._nodes = found.nodes
+        self._complete = found.complete
         u = law.plan[:3]
         return (u[0], u[1], u[2])
 
@@ -370,4 +433,4 @@ class MPCController(Controller):
             self.i_ref.imag,
             NAN,  # mtpa_gradient
         )
-        return self.command(state, pulses, diagnostics, compute_ns)
+        return self.command(state, pulses, diagnostics, compute_ns, 0.0 if self._complete else 1.0)

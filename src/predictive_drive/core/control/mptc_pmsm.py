@@ -21,25 +21,34 @@ from dataclasses import dataclass
 from math import asin, cos, sin, sqrt
 from typing import Any
 
+import numpy as np
+
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
 from .base import (
     AFTER,
+    AFTER_TABLE,
     NO_EFFORT,
+    NO_EFFORT_TABLE,
     Decision,
     SwitchingEffort,
     VectorController,
+    budget_field,
     check_horizon,
+    compiled,
     delay_compensation,
     horizon_field,
     lambda_sw_field,
     pmsm_predicted,
     prediction_field,
+    rows,
+    search_field,
 )
 from .candidates import TABLES
-from .search import Expand, branch_and_bound
+from .kernels import PMSM_STAGE, BranchAndBound, compiled_branch_and_bound
+from .search import Expand, SearchResult, branch_and_bound
 
 __all__ = [
     "PMSM_STRATEGIES",
@@ -102,6 +111,9 @@ class PMSMPrediction:
         "volts",
         "rotor_motion",
         "turn",
+        "budget",
+        "compiled",
+        "effort_table",
     )
 
     def __init__(
@@ -124,6 +136,11 @@ class PMSMPrediction:
         self.sw: tuple[float, ...] | None = None
         self.code = 0  #: the switching state in force, S_a·4 + S_b·2 + S_c
         self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
+        self.budget = 0  #: stage costs a search may evaluate (0: no limit)
+        #: the compiled branch and bound (None: search.branch_and_bound), and the switching
+        #: effort's costs as it takes them
+        self.compiled: BranchAndBound | None = None
+        self.effort_table = NO_EFFORT_TABLE if effort is None else np.array(effort.full)
         self.theta_e = 0.0  #: rotor angle at the sample, rad
         self.w_e = 0.0  #: electrical speed, rad/s
         self.volts: tuple[complex, ...] = ()
@@ -250,15 +267,44 @@ class MPTC:
 
     def __init__(self) -> None:
         self.plan: tuple[int, ...] = ()
+        self.found = SearchResult((), INF, 0)  #: the last search's result
 
     def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
         if m.horizon == 1:
             return _DECISIONS[7][_argmin(m, ACTIVE_VECTORS, torque_ref, flux_ref)]
         guess = (*self.plan[1:], self.plan[-1]) if self.plan else ()
         root = (m.psi * complex(math.cos(m.theta_psi), math.sin(m.theta_psi)), 0, m.code)
-        found = branch_and_bound(horizon_stages(m, torque_ref, flux_ref), root, m.horizon, guess)
-        self.plan = found.sequence
-        return Decision(found.sequence[0], 1.0, NAN, found.nodes)
+        if m.compiled is not None:
+            constants, steps, turn = stage_constants(m, torque_ref, flux_ref)
+            psi = root[0]
+            found = m.compiled(
+                PMSM_STAGE, np.array(constants), np.array((psi.real, psi.imag, 0.0, 0.0)),
+                m.code, rows(steps), m.effort_table, AFTER_TABLE, rows(turn), m.horizon,
+                guess, m.budget,
+            )  # fmt: skip
+        else:
+            stages = horizon_stages(m, torque_ref, flux_ref)
+            found = branch_and_bound(stages, root, m.horizon, guess, m.budget)
+        self.plan, self.found = found.sequence, found
+        return Decision(found.sequence[0], 1.0, NAN, found.nodes, 0.0 if found.complete else 1.0)
+
+
+def stage_constants(
+    m: PMSMPrediction, torque_ref: float, flux_ref: float
+) -> tuple[tuple[float, ...], list[complex], list[complex]]:
+    """What :func:`horizon_stages` computes with, as the compiled search takes it: (ψ_f, 1/L_d,
+    1/L_q, 1.5p, L_d - L_q, 1/T*, 1/ψ*, T*, ψ*), each vector's ψ step V·Ts, and each period's
+    turn into the rotor frame e^{-jθ_e(ℓ)}."""
+    pf, ild, ilq, tk, dl, t_floor = m.consts
+    inv_t = 1.0 / (torque_ref if torque_ref > t_floor else -torque_ref if -torque_ref > t_floor
+                   else t_floor)  # fmt: skip
+    inv_p = 1.0 / flux_ref
+    steps = [v * m.ts for v in m.volts]
+    end = 1 if m.rotor_motion else 0
+    turn = [complex(math.cos(-m.theta_e - (ell + end) * m.w_e * m.ts),
+                    math.sin(-m.theta_e - (ell + end) * m.w_e * m.ts))
+            for ell in range(m.horizon)]  # fmt: skip
+    return (pf, ild, ilq, tk, dl, inv_t, inv_p, torque_ref, flux_ref), steps, turn
 
 
 def horizon_stages(m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Expand:
@@ -268,16 +314,10 @@ def horizon_stages(m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Exp
     the rotor's angle of that period's start (frozen over it, as eq 1-3 take it:
     θ_e + ℓ·ω_e·Ts) or, with ``rotor_motion``, of its end (θ_e + (ℓ+1)·ω_e·Ts), and the stage
     cost sqrt(((T - T*)/T*)² + ((|ψ| - ψ*)/ψ*)²) + λ_sw × commutations."""
-    pf, ild, ilq, tk, dl, t_floor = m.consts
-    inv_t = 1.0 / (torque_ref if torque_ref > t_floor else -torque_ref if -torque_ref > t_floor
-                   else t_floor)  # fmt: skip
-    inv_p = 1.0 / flux_ref
-    steps = [v * m.ts for v in m.volts]
+    (pf, ild, ilq, tk, dl, inv_t, inv_p, _, _), steps, turn = stage_constants(
+        m, torque_ref, flux_ref
+    )
     full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
-    end = 1 if m.rotor_motion else 0
-    turn = [complex(math.cos(-m.theta_e - (ell + end) * m.w_e * m.ts),
-                    math.sin(-m.theta_e - (ell + end) * m.w_e * m.ts))
-            for ell in range(m.horizon)]  # fmt: skip
 
     def expand(node: tuple[complex, int, int]) -> list[tuple[float, int, Any]]:
         psi, ell, code = node
@@ -378,6 +418,8 @@ class PMSMControllerParams:
     )
     lambda_sw: float = lambda_sw_field("1 (the cost is normalised, eq 5)")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
+    node_budget: int = budget_field("stage costs", 0)
+    search: str = search_field("mptc's branch and bound over a horizon")
     prediction: str = prediction_field()
     delay_compensation: bool = delay_compensation()
 
@@ -405,6 +447,8 @@ class PMSMController(VectorController):
             PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor, effort
         )
         self._pred.rotor_motion = params.prediction == "rotor_motion"
+        self._pred.budget = params.node_budget
+        self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
         super().__init__(params, ts=ts)
 
     def _predict(self, state: State, u_ab: complex) -> State:
