@@ -9,7 +9,9 @@ little-endian doubles: every field but ``compute_ns`` (wall time, never the same
 
 The long horizons (multi-step ``mptc`` of both MPTC families, ``direct_mpc``) run besides, a few
 hundred steps each at one horizon (:data:`HORIZON_RUNS`): their searches are exact, so a faster
-search holds these to the same decisions, node counts aside where it visits fewer.
+search holds these to the same decisions, node counts aside where it visits fewer. Each runs
+with its family's default node budget, and ``-unlimited`` without one (the exact search: the
+budget's 0 decides as the searches did before there was one).
 
 A change meant to alter a recording regenerates the stored file in the same commit and says why
 in its message::
@@ -62,6 +64,15 @@ COMMON = {"plant.period_means": True}
 #: the long horizons: id → (scenario, strategy, horizon, real drive or ideal, steps); the steady
 #: points' first 400 steps hold their torque ramp (direct_mpc's largest trees) and its end
 HORIZON_RUNS: dict[str, tuple[str, str, int, bool, int]] = {
+    # the exact search (node_budget 0), as before the budget; the default budget stops it at
+    # some of these steps
+    "ipmsm_steady_mpc-direct_mpc-N10-ideal-unlimited": (
+        "ipmsm_steady_mpc",
+        "direct_mpc",
+        10,
+        False,
+        400,
+    ),  # fmt: skip
     "im_short-mptc-N3-ideal": ("im_short", "mptc", 3, False, 1400),  # soft start: 963 steps
     "ipmsm_short-mptc-N3-ideal": ("ipmsm_short", "mptc", 3, False, 400),
     "ipmsm_short-mptc-N2-real": ("ipmsm_short", "mptc", 2, True, 400),
@@ -86,6 +97,8 @@ def cases() -> list[tuple[str, str, str, dict[str, Any], int]]:
     for cid, (scenario, strategy, horizon, real, steps) in HORIZON_RUNS.items():
         drive = real_drive(scenario) if real else {}
         law = {"torque_controller.strategy": strategy, "torque_controller.horizon": horizon}
+        if cid.endswith("-unlimited"):
+            law["torque_controller.node_budget"] = 0
         settings = {**COMMON, **drive, **law}
         out.append((cid, scenario, strategy, settings, steps))
     return out

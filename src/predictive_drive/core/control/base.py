@@ -31,6 +31,7 @@ __all__ = [
     "AFTER_TABLE",
     "NO_EFFORT_TABLE",
     "NO_EFFORT",
+    "NODE_BUDGET",
     "budget_field",
     "compiled",
     "rows",
@@ -160,6 +161,12 @@ def horizon_field(strategies: str, maximum: int) -> Any:
         integer=True,
         default=1,
     )
+
+
+#: the long horizons' default budget a step (docs/physics.md#a-budget-per-step): at N = 10
+#: about three times the median search's nodes on ipmsm_steady_mpc, so the slowest step takes
+#: about three times the median's time; an exact search finishes below it at N ≤ 5
+NODE_BUDGET = 8000
 
 
 def budget_field(unit: str, default: int) -> Any:

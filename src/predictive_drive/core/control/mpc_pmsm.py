@@ -42,7 +42,7 @@ from ..machines import Machine
 from ..machines.pmsm import PMSM, PMSMCoefficients, PMSMStep, pmsm_exact_step
 from ..signals import Command, PhasePulses, Reference, State, new_record
 from .base import (
-    SEARCHES,
+    NODE_BUDGET,
     Controller,
     budget_field,
     check_horizon,
@@ -75,8 +75,6 @@ TWO_PI = 2.0 * math.pi
 MAX_HORIZON = 12
 #: the current references' angle: paper 002 eq 10's MTPA, or i_d = 0
 MTPA_LAWS = ("formula", "zero_d")
-#: which sphere decoder runs (:mod:`.kernels`)
-DECODERS = SEARCHES
 #: (S_a, S_b, S_c) → u_αβ per volt of U_dc: (2/3)(S_a + a S_b + a² S_c), as two real rows
 _LEGS_ROWS = (
     (2.0 / 3.0, -1.0 / 3.0, -1.0 / 3.0),
@@ -121,7 +119,7 @@ class MPCParams:
     )  # fmt: skip
     decoder: str = search_field("the sphere decoder")
     prediction: str = prediction_field()
-    node_budget: int = budget_field("tree nodes", 0)
+    node_budget: int = budget_field("tree nodes", NODE_BUDGET)
     delay_compensation: bool = delay_compensation()
 
     def __post_init__(self) -> None:

@@ -26,6 +26,7 @@ from .base import (
     AFTER_TABLE,
     NO_EFFORT,
     NO_EFFORT_TABLE,
+    NODE_BUDGET,
     Decision,
     SwitchingEffort,
     VectorController,
@@ -365,7 +366,7 @@ class InductionControllerParams:
     lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
     lambda_sw: float = lambda_sw_field("N·m")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
-    node_budget: int = budget_field("stage costs", 0)
+    node_budget: int = budget_field("stage costs", NODE_BUDGET)
     search: str = search_field("mptc's branch and bound over a horizon")
     soft_start_flux: float = quantity(
         "soft start until the flux estimate first reaches this", "Wb", ge=0, default=0.65

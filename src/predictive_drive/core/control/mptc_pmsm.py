@@ -32,6 +32,7 @@ from .base import (
     AFTER_TABLE,
     NO_EFFORT,
     NO_EFFORT_TABLE,
+    NODE_BUDGET,
     Decision,
     SwitchingEffort,
     VectorController,
@@ -418,7 +419,7 @@ class PMSMControllerParams:
     )
     lambda_sw: float = lambda_sw_field("1 (the cost is normalised, eq 5)")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
-    node_budget: int = budget_field("stage costs", 0)
+    node_budget: int = budget_field("stage costs", NODE_BUDGET)
     search: str = search_field("mptc's branch and bound over a horizon")
     prediction: str = prediction_field()
     delay_compensation: bool = delay_compensation()
