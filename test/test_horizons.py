@@ -490,3 +490,20 @@ def test_a_budget_applies_the_best_so_far_and_report_counts_the_steps(tmp_path, 
     assert (d.suboptimal_steps, d.searched_steps) == (int((sub == 1.0).sum()), len(sub))
     print_recording(report(r.bag))
     assert f"suboptimal steps: {d.suboptimal_steps} of {len(sub)}" in capsys.readouterr().out
+
+
+def test_a_compiled_search_is_made_at_its_first_call_and_refused_without_numba(monkeypatch):
+    """auto: the kernel where numba is installed, made when first called (a controller that
+    never searches never imports numba), the reference where it is not; compiled without
+    numba: ConfigError naming the key and the reason."""
+    from predictive_drive.core.control import base
+
+    made = []
+    search = base.compiled("auto", "search", lambda: made.append(1) or (lambda *args: args))
+    assert made == [] and search(1, 2) == (1, 2) and search(3) == (3,) and made == [1]
+    assert base.compiled("python", "search", lambda: made.append(2)) is None
+    monkeypatch.setattr(base, "kernel_unavailable", lambda: "numba is not installed")
+    assert base.compiled("auto", "decoder", lambda: made.append(3)) is None
+    with pytest.raises(ConfigError, match="torque_controller.decoder: compiled, but numba"):
+        base.compiled("compiled", "decoder", lambda: made.append(4))
+    assert made == [1]

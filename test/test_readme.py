@@ -96,6 +96,10 @@ NOT_RUN = {
         "test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step"
     ),
     "pip install 'predictive_drive[fast]'": "make setup installs it (the [fast] extra)",
+    "predictive-drive run ipmsm_steady_mpc --engine inprocess --set torque_controller.horizon=10": (
+        "5,000 steps at N = 10; test_a_budget_applies_the_best_so_far_and_report_counts_the_steps "
+        "runs it for 0.05 s with a budget and reads report's line"
+    ),
     # docs/reproduction.md
     "predictive-drive reproduce fronts": "224 runs, minutes here; test_fronts.py runs a small "
     "study through the same code (api.fronts.reproduce_fronts)",

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from time import perf_counter_ns
-from typing import Any, ClassVar, NamedTuple, Protocol, TypeVar
+from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from ..machines import Machine
 from ..machines.pmsm import PMSMCoefficients, pmsm_exact_step, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
 from .kernels import kernel_unavailable
+from .search import SearchResult
 
 __all__ = [
     "AFTER",
@@ -196,21 +197,28 @@ def search_field(what: str) -> Any:
     )
 
 
-_T = TypeVar("_T")
-
-
-def compiled(name: str, key: str, factory: Callable[[], _T]) -> _T | None:
+def compiled(
+    name: str, key: str, factory: Callable[[], Callable[..., SearchResult]]
+) -> Callable[..., SearchResult] | None:
     """The compiled search ``factory`` makes where ``name`` (one of :data:`SEARCHES`) asks for
-    it and numba is installed; None for the Python reference; ConfigError (naming
+    it and numba is installed — made at its first call, so a controller that never searches
+    never imports numba (a second or so); None for the Python reference; ConfigError (naming
     ``torque_controller.<key>``) for ``compiled`` without numba."""
     if name == "python":
         return None
     reason = kernel_unavailable()
-    if reason is None:
-        return factory()
-    if name == "compiled":
-        raise ConfigError(f"torque_controller.{key}: compiled, but {reason}")
-    return None
+    if reason is not None:
+        if name == "compiled":
+            raise ConfigError(f"torque_controller.{key}: compiled, but {reason}")
+        return None
+    made: list[Callable[..., SearchResult]] = []
+
+    def search(*args: Any) -> SearchResult:
+        if not made:
+            made.append(factory())
+        return made[0](*args)
+
+    return search
 
 
 def rows(values: Sequence[complex]) -> np.ndarray:

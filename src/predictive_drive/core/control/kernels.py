@@ -23,6 +23,7 @@ order, without the work for rows a pruned branch never reaches.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 from collections.abc import Callable, Sequence
 from functools import cache
@@ -50,10 +51,9 @@ IM_STAGE, PMSM_STAGE = 0, 1
 
 @cache
 def kernel_unavailable() -> str | None:
-    """Why there is no compiled kernel here (None: there is one)."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
+    """Why there is no compiled kernel here (None: there is one). numba is looked for, not
+    imported: that waits for the first kernel."""
+    if importlib.util.find_spec("numba") is None:
         return "numba is not installed (pip install 'predictive_drive[fast]')"
     return None
 
