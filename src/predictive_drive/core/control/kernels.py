@@ -182,7 +182,12 @@ def distance(v: np.ndarray, ub: np.ndarray, u: np.ndarray) -> float:
 
 
 def problem(
-    model: np.ndarray, n: int, state: np.ndarray, i_base: float, lam: float, prev: np.ndarray
+    model: Sequence[float],
+    n: int,
+    state: Sequence[float],
+    i_base: float,
+    lam: float,
+    prev: Sequence[int],
 ) -> tuple[np.ndarray, np.ndarray]:
     """mpc_pmsm.problem, compiled: (V, ū), the same operations in the same order."""
     a11, a12, a21, a22 = model[0], model[1], model[2], model[3]
@@ -264,7 +269,7 @@ def problem(
     return v, ubar
 
 
-def smallest_of_equal_cost(u: np.ndarray, prev: np.ndarray) -> np.ndarray:
+def smallest_of_equal_cost(u: np.ndarray, prev: Sequence[int]) -> np.ndarray:
     """mpc_pmsm.smallest_of_equal_cost of a solution in U's order: the plan in order of
     time, 000 and 111 chosen alike."""
     n = u.shape[0] // 3
@@ -303,12 +308,12 @@ def smallest_of_equal_cost(u: np.ndarray, prev: np.ndarray) -> np.ndarray:
 
 
 def direct_mpc(
-    model: np.ndarray,
+    model: Sequence[float],
     n: int,
-    state: np.ndarray,
+    state: Sequence[float],
     i_base: float,
     lam: float,
-    prev: np.ndarray,
+    prev: Sequence[int],
     guess: np.ndarray,
     budget: int,
 ) -> tuple[np.ndarray, float, int, bool]:
@@ -515,9 +520,11 @@ def compiled_direct_mpc() -> DirectMPC:
         guess: Sequence[int],
         budget: int,
     ) -> SearchResult:
+        # the model, the state and u_prev as tuples (of floats, ints): numba takes a tuple
+        # faster than it takes a new array
         u, d, nodes, complete = kernel(
-            np.array(model), n, np.array(state), i_base, lam, np.array(prev, np.int64),
-            np.array(guess, np.int64) if guess else empty, budget,
+            model, n, state, i_base, lam, prev, np.array(guess, np.int64) if guess else empty,
+            budget,
         )  # fmt: skip
         return SearchResult(tuple(u.tolist()), float(d), int(nodes), bool(complete))
 
@@ -533,7 +540,7 @@ def compiled_problem() -> Callable[..., tuple[np.ndarray, np.ndarray]]:
     kernel = _kernels()[3]
 
     def problem(model: Any, n: int, state: Any, i_base: float, lam: float, prev: Any) -> Any:
-        return kernel(np.array(model), n, np.array(state), i_base, lam, np.array(prev, np.int64))
+        return kernel(model, n, state, i_base, lam, prev)
 
     return problem
 
