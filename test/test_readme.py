@@ -180,6 +180,13 @@ NOT_RUN = {
     "predictive-drive bench": "test_every_verb_runs_from_the_install (bench --quick)",
     "predictive-drive bench --json": "test_every_verb_runs_from_the_install (bench --quick --json)",
     "python test/writer_bench.py": "a benchmark: it prints figures, asserts none",
+    "predictive-drive bench --json --no-ros": (
+        "test_every_verb_runs_from_the_install (bench --quick --json); a benchmark"
+    ),
+    "predictive-drive sweep ipmsm_steady_mpc --strategy direct_mpc --set "
+    "torque_controller.horizon=1,3,5,10 --set torque_controller.lambda_u=… --json": (
+        "64 runs up to N = 10 (minutes); test_sweep.py runs sweeps with --set and --json"
+    ),
     "predictive-drive run im_paper --engine inprocess": "the engine of test_core_metrics.py's "
     "runs; a command of the measurement it names",
     "make run": "the README's (shortened here)",
