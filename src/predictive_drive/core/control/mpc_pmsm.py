@@ -17,13 +17,16 @@ turning ω_e·Ts a period, each period's voltage turned into dq at its middle (`
 rotor_motion``: each period solved exactly at that speed,
 docs/physics.md#predicting-the-pmsm-over-a-period) — linear,
 i(ℓ+1) = A i(ℓ) + B_ℓ u(ℓ) + c — so J is, up to a constant, (U - U_unc)ᵀ H (U - U_unc) with
-H = ΥᵀΥ + λ_u SᵀS over the stacked U. With H = VᵀV (V upper triangular, from the Cholesky
-factor) it is the integer least-squares problem min ‖V·U_unc - V·U‖², solved exactly by
-:func:`~.search.sphere_decode`, the last optimum shifted as its first radius. Of the sequences
-that apply the optimum's voltages (000 and 111 exchanged), the fewest commutations and then the
+H = ΥᵀΥ + λ_u SᵀS over the stacked U (in reverse order of time, so the decoder decides the
+first period first). With H = VᵀV (V upper triangular, from the Cholesky factor) it is the
+integer least-squares problem min ‖V·U_unc - V·U‖², solved exactly by
+:func:`~.search.sphere_decode`, the last optimum shifted as its first radius, within
+``node_budget`` nodes (docs/physics.md#a-budget-per-step). Of the sequences that apply the
+optimum's voltages (000 and 111 exchanged), the fewest commutations and then the
 lexicographically smallest is taken (:func:`smallest_of_equal_cost`: exact ties, which the
 decoder's rounded distance cannot order). The first three components are applied for the whole
-period; ``cal`` is the decoder's node count.
+period; ``cal`` is the decoder's node count. :func:`solve` is the decision in plain Python,
+the reference :func:`~.kernels.compiled_direct_mpc` is held to bit for bit.
 """
 
 from __future__ import annotations
