@@ -8,6 +8,12 @@ the plant's period means on (they change nothing else:
 per-step topic (state, reference, command) and per field, a hash of the field's column as
 little-endian doubles: every field but ``compute_ns`` (wall time, never the same twice).
 
+The long horizons (multi-step ``mptc`` of both MPTC families, ``direct_mpc``) run besides, a few
+hundred steps each at one horizon (:data:`HORIZON_RUNS`): their searches are exact, so a faster
+search holds these to the same decisions, node counts aside where it visits fewer. Each runs
+with its family's default node budget, and ``-unlimited`` without one (the exact search: the
+budget's 0 decides as the searches did before there was one).
+
 A change meant to alter a recording regenerates the stored file in the same commit and says why
 in its message::
 
@@ -58,23 +64,52 @@ UNSTABLE = {"compute_ns"}
 def real_drive(scenario: str) -> dict[str, Any]:
     """The realism study's last column ("+ sensors": delay, compensation, dead time, sensors)
     for the machine of ``scenario``."""
-    study, own = SCENARIOS[scenario]
+    study, own = SCENARIOS.get(scenario, (STUDY_OF.get(scenario, ""), {}))
     return {**condition_settings(REALISM[study].hardware)[-1][1], **own}
 
 
 #: every run's own settings
 COMMON = {"plant.period_means": True}
+#: the long horizons: id → (scenario, strategy, horizon, real drive or ideal, steps); the steady
+#: points' first 400 steps hold their torque ramp (direct_mpc's largest trees) and its end
+HORIZON_RUNS: dict[str, tuple[str, str, int, bool, int]] = {
+    # the exact search (node_budget 0), as before the budget; the default budget stops it at
+    # some of these steps
+    "ipmsm_steady_mpc-direct_mpc-N10-ideal-unlimited": (
+        "ipmsm_steady_mpc",
+        "direct_mpc",
+        10,
+        False,
+        400,
+    ),  # fmt: skip
+    "im_short-mptc-N3-ideal": ("im_short", "mptc", 3, False, 1400),  # soft start: 963 steps
+    "ipmsm_short-mptc-N3-ideal": ("ipmsm_short", "mptc", 3, False, 400),
+    "ipmsm_short-mptc-N2-real": ("ipmsm_short", "mptc", 2, True, 400),
+    "ipmsm_steady_mpc-direct_mpc-N1-ideal": ("ipmsm_steady_mpc", "direct_mpc", 1, False, 400),
+    "ipmsm_steady_mpc-direct_mpc-N3-real": ("ipmsm_steady_mpc", "direct_mpc", 3, True, 400),
+    "ipmsm_steady_mpc-direct_mpc-N10-ideal": ("ipmsm_steady_mpc", "direct_mpc", 10, False, 400),
+    "hs_ipmsm_steady_mpc-direct_mpc-N5-ideal": ("hs_ipmsm_steady_mpc", "direct_mpc", 5, False, 400),
+}
+#: the real drive of each steady point: its machine's (the realism study's)
+STUDY_OF = {"ipmsm_steady_mpc": "ipmsm_validation", "hs_ipmsm_steady_mpc": "ipmsm_validation"}
 
 
-def cases() -> list[tuple[str, str, str, dict[str, Any]]]:
-    """(id, scenario, strategy, settings) of every run fingerprinted."""
+def cases() -> list[tuple[str, str, str, dict[str, Any], int]]:
+    """(id, scenario, strategy, settings, steps) of every run fingerprinted."""
     out = []
     for scenario in SCENARIOS:
         family = load_scenario_text(*_text(scenario, {})).family
         for strategy in strategy_names(family):
             for drive, settings in (("ideal", {}), ("real", real_drive(scenario))):
-                case = (scenario, strategy, {**COMMON, **settings})
+                case = (scenario, strategy, {**COMMON, **settings}, STEPS)
                 out.append((f"{scenario}-{strategy}-{drive}", *case))
+    for cid, (scenario, strategy, horizon, real, steps) in HORIZON_RUNS.items():
+        drive = real_drive(scenario) if real else {}
+        law = {"torque_controller.strategy": strategy, "torque_controller.horizon": horizon}
+        if cid.endswith("-unlimited"):
+            law["torque_controller.node_budget"] = 0
+        settings = {**COMMON, **drive, **law}
+        out.append((cid, scenario, strategy, settings, steps))
     return out
 
 
@@ -84,9 +119,9 @@ def _text(scenario: str, settings: dict[str, Any]) -> tuple[str, str]:
     return (apply_settings(text, settings, path) if settings else text), str(path)
 
 
-def trace_of(scenario: str, strategy: str, settings: dict[str, Any]) -> Trace:
+def trace_of(scenario: str, strategy: str, settings: dict[str, Any], steps: int = STEPS) -> Trace:
     sc = load_scenario_text(*_text(scenario, settings)).with_strategy(strategy)
-    return run_inprocess(sc, steps=STEPS)
+    return run_inprocess(sc, steps=steps)
 
 
 def fingerprint(trace: Trace) -> dict[str, dict[str, str]]:
@@ -102,12 +137,12 @@ def fingerprint(trace: Trace) -> dict[str, dict[str, str]]:
 
 
 def compute() -> dict[str, dict[str, dict[str, str]]]:
-    return {cid: fingerprint(trace_of(sc, st, s)) for cid, sc, st, s in cases()}
+    return {cid: fingerprint(trace_of(sc, st, s, n)) for cid, sc, st, s, n in cases()}
 
 
 def main() -> None:
     STORED.write_text(json.dumps(compute(), indent=1, sort_keys=True) + "\n")
-    print(f"wrote {STORED} ({len(cases())} runs of {STEPS} steps)", file=sys.stderr)
+    print(f"wrote {STORED} ({len(cases())} runs)", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -217,7 +217,7 @@ def test_the_period_mean_of_the_current_when_the_rotor_turns_far_in_a_sub_step()
         pieces.clear()
         duty = 0.15 + 0.7 * (k % 7) / 6
         pulses = (0.0, 0.5 * (1 - duty), 0.1, duty, duty / 2, 0.85)
-        state = plant.step(Command(k, k * ts, *pulses, *[math.nan] * 14))
+        state = plant.step(Command(k, k * ts, *pulses, *[math.nan] * (len(Command._fields) - 8)))
         whole = sum(
             h * np.sum(weights / 2 * (i0 + (i1 - i0) * s) * np.exp(1j * (th0 + (th1 - th0) * s)))
             for i0, i1, th0, th1, h in pieces

@@ -495,3 +495,29 @@ def test_field_orientation_holds_the_operating_point_on_its_mean_current(
     t_ref, psi_ref = sc.speed_pi.torque_values[-1], sc.speed_pi.flux_ref
     assert 100 * m.t_mean_error_cont / t_ref == pytest.approx(torque, abs=0.1)
     assert 100 * m.psi_mean_error_cont / psi_ref == pytest.approx(flux, abs=0.1)
+
+
+@pytest.mark.parametrize("mtpa", ["formula", "zero_d"])
+def test_direct_mpc_asks_for_the_current_that_makes_the_torque(mtpa):
+    """direct_mpc takes its reference as foc_pmsm does: at the MTPA angle, the amplitude that
+    makes T* with the reluctance torque (was |T*|/k_t: 15.47 N·m asked for 15 on paper 001's
+    IPMSM); at i_d = 0, |T*|/k_t, which makes T* there."""
+    import dataclasses
+
+    from predictive_drive.config import load_scenario
+    from predictive_drive.core.runner import build_controller
+    from predictive_drive.core.signals import Reference, State
+
+    sc = load_scenario("ipmsm_steady_mpc")
+    sc = dataclasses.replace(sc, controller=dataclasses.replace(sc.controller, mtpa=mtpa))
+    ctrl = build_controller(sc)
+    m = sc.controller.motor
+    state = State(*([0.0] * 6), 312.0, *([math.nan] * (len(State._fields) - 7)))
+    for torque in (15.0, -9.0):
+        ref = Reference(*([0.0] * len(Reference._fields)))._replace(torque_ref=torque)
+        ctrl.step(state, ref)
+        i = ctrl.i_ref
+        made = 1.5 * m.p * (m.psi_f * i.imag + (m.l_d - m.l_q) * i.real * i.imag)
+        assert made == pytest.approx(torque, rel=1e-9)
+        if mtpa == "zero_d":
+            assert i.real == 0.0

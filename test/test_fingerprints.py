@@ -25,11 +25,13 @@ def test_the_stored_file_holds_exactly_the_cases_run(stored):
 
 
 @pytest.mark.core
-@pytest.mark.parametrize(("scenario", "strategy", "settings"), [c[1:] for c in CASES],
+@pytest.mark.parametrize(("scenario", "strategy", "settings", "steps"), [c[1:] for c in CASES],
                          ids=[c[0] for c in CASES])  # fmt: skip
-def test_a_run_records_what_it_recorded_before(stored, scenario, strategy, settings, request):
+def test_a_run_records_what_it_recorded_before(
+    stored, scenario, strategy, settings, steps, request
+):
     case = request.node.callspec.id
-    now = fingerprint(trace_of(scenario, strategy, settings))
+    now = fingerprint(trace_of(scenario, strategy, settings, steps))
     before = stored[case]
     changed = [
         f"{record}.{name}"
@@ -58,8 +60,8 @@ def test_period_means_change_nothing_else(drive):
     from predictive_drive.core.signals import State
 
     case = next(c for c in CASES if c[0] == f"ipmsm_mtpa_short-foc_zero_d-{drive}")
-    on = trace_of(case[1], case[2], case[3])
-    off = trace_of(case[1], case[2], {**case[3], "plant.period_means": False})
+    on = trace_of(*case[1:])
+    off = trace_of(case[1], case[2], {**case[3], "plant.period_means": False}, case[4])
     means = [State._fields.index(name) for name in PERIOD_MEANS]
     rest = [i for i in range(len(State._fields)) if i not in means]
     assert np.array_equal(on.state[:, rest], off.state[:, rest], equal_nan=True)

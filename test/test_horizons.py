@@ -21,11 +21,13 @@ from predictive_drive.core.control.mptc_im import IMPrediction
 from predictive_drive.core.control.mptc_pmsm import PMSMPrediction
 from predictive_drive.core.inverter import (
     active_then_zero,
+    clarke,
     segments,
     vector_voltages,
 )
 from predictive_drive.core.machines.induction import InductionCoefficients, induction_dynamics
-from predictive_drive.core.machines.pmsm import PMSM, PMSMCoefficients
+from predictive_drive.core.machines.pmsm import PMSM, PMSMCoefficients, pmsm_predict_current
+from predictive_drive.core.signals import Reference, State
 from predictive_drive.errors import ConfigError
 
 pytestmark = pytest.mark.core
@@ -119,16 +121,17 @@ def test_multistep_mptc_of_the_induction_motor_equals_exhaustive_enumeration(im,
         assert got in best_first(cost, seqs), (i, psi, w, t_ref, code, lam_sw)
 
 
-def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs, sw, u_dc):
+def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs, sw, u_dc, end=0):
     """Each sequence's cost by eq 1-3 in vector form: ψ(ℓ+1) = ψ(ℓ) + V·Ts (R_s neglected), the
-    rotor turning ω_e·Ts a period (frozen within it), torque from the flux in the rotor frame."""
+    rotor turning ω_e·Ts a period (frozen within it; ``end`` = 1: the torque at the period's
+    end angle), torque from the flux in the rotor frame."""
     volts = np.array(vector_voltages(u_dc))
     psi = np.full(len(seqs), psi_ab, dtype=complex)
     norm_t = max(abs(t_ref), t_floor)
     cost = np.zeros(len(seqs))
     for ell in range(seqs.shape[1]):
         psi = psi + volts[seqs[:, ell]] * TS
-        dq = psi * cmath.exp(-1j * (theta_e + ell * w_e * TS))
+        dq = psi * cmath.exp(-1j * (theta_e + (ell + end) * w_e * TS))
         i_d, i_q = (dq.real - motor.psi_f) / motor.l_d, dq.imag / motor.l_q
         te = 1.5 * motor.p * (motor.psi_f * i_q + (motor.l_d - motor.l_q) * i_d * i_q)
         e = np.hypot((te - t_ref) / norm_t, (np.abs(psi) - psi_ref) / psi_ref)
@@ -139,27 +142,30 @@ def pmsm_costs(motor: PMSM, psi_ab, theta_e, w_e, t_ref, psi_ref, t_floor, seqs,
 IPMSM = PMSM(0.25, 0.0033, 0.0073, 0.2264, 3, 0.001, 15.0, 1000.0)
 
 
+@pytest.mark.parametrize("prediction", ["frozen_rotor", "rotor_motion"])
 @pytest.mark.parametrize("horizon", [1, 2, 3])
-def test_multistep_mptc_of_the_pmsm_equals_exhaustive_enumeration(horizon):
+def test_multistep_mptc_of_the_pmsm_equals_exhaustive_enumeration(horizon, prediction):
     c = PMSMCoefficients.of(IPMSM)
     seqs = SEQUENCES[horizon]
     s = make_strategy("mptc_pmsm", "mptc")
     rng = random.Random(10 + horizon)
-    for _ in range(CASES):
+    end = int(prediction == "rotor_motion")
+    for _ in range(CASES if not end else CASES // 5):
         i = complex(rng.uniform(-8, 4), rng.uniform(-25, 25))
         theta = rng.uniform(0, 2 * math.pi)
         i_ab = i * cmath.exp(1j * theta)
         w_e, t_ref, psi_ref = rng.uniform(-400, 400), rng.uniform(-30, 30), rng.uniform(0.2, 0.3)
         code, lam_sw = rng.randrange(8), rng.choice([0.0, 0.0, 0.01, 0.05])
         m = PMSMPrediction(c, TS, 0.75, 0.15, SwitchingEffort(lam_sw) if lam_sw else None)
-        m.prepare(i_ab.real, i_ab.imag, theta, 312.0)
+        m.rotor_motion = bool(end)
+        m.prepare(i_ab.real, i_ab.imag, theta, 312.0, w_e)
         m.theta_e, m.w_e, m.volts, m.horizon = theta, w_e, vector_voltages(312.0), horizon
         m.switching(STATE_OF[code])
         s.plan = ()
         got = s.decide(m, t_ref, psi_ref).vector  # N = 1: the one-step law, eq 1-3 in polar form
         psi_ab = m.psi * cmath.exp(1j * m.theta_psi)
         sw = switching_cost(seqs, code, lam_sw)
-        cost = pmsm_costs(IPMSM, psi_ab, theta, w_e, t_ref, psi_ref, 0.15, seqs, sw, 312.0)
+        cost = pmsm_costs(IPMSM, psi_ab, theta, w_e, t_ref, psi_ref, 0.15, seqs, sw, 312.0, end)
         assert got in best_first(cost, seqs), (i, theta, w_e, t_ref, psi_ref, code, lam_sw)
 
 
@@ -243,9 +249,11 @@ STATES8 = np.array([((c >> 2) & 1, (c >> 1) & 1, c & 1) for c in range(8)])
 SWITCH_SEQUENCES = {n: np.array(list(itertools.product(range(8), repeat=n))) for n in (1, 2, 3)}
 
 
-def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, horizon):
+def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, horizon, exact=None):
     """J of every switching sequence, simulated here step by step (complex dq arithmetic):
-    Σ |(i* - i(ℓ+1))/I_b|² + λ_u ‖u(ℓ) - u(ℓ-1)‖²; the sequences (codes 0..7 per step)."""
+    Σ |(i* - i(ℓ+1))/I_b|² + λ_u ‖u(ℓ) - u(ℓ-1)‖²; the sequences (codes 0..7 per step). The
+    model forward Euler in dq, the voltage at each period's middle angle; or ``exact`` (a
+    PMSMStep): i(ℓ+1) = A·i + G·u + f, the voltage at each period's start angle."""
     seqs = SWITCH_SEQUENCES[horizon]
     a = cmath.exp(2j * math.pi / 3)
     u_ab = 2.0 / 3.0 * u_dc * (STATES8[:, 0] + a * STATES8[:, 1] + a * a * STATES8[:, 2])
@@ -254,14 +262,20 @@ def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, hori
     cost = np.zeros(len(seqs))
     for ell in range(horizon):
         code = seqs[:, ell]
-        u = u_ab[code] * cmath.exp(-1j * (theta + (ell + 0.5) * w_e * TS))
-        i_d = i.real + TS * (u.real - motor.r_s * i.real + w_e * motor.l_q * i.imag) / motor.l_d
-        i_q = (
-            i.imag
-            + TS
-            * (u.imag - motor.r_s * i.imag - w_e * (motor.l_d * i.real + motor.psi_f))
-            / motor.l_q
-        )
+        if exact is not None:
+            x = exact
+            u = u_ab[code] * cmath.exp(-1j * (theta + ell * w_e * TS))
+            i_d = x.a11 * i.real + x.a12 * i.imag + x.g11 * u.real + x.g12 * u.imag + x.f_d
+            i_q = x.a21 * i.real + x.a22 * i.imag + x.g21 * u.real + x.g22 * u.imag + x.f_q
+        else:
+            u = u_ab[code] * cmath.exp(-1j * (theta + (ell + 0.5) * w_e * TS))
+            i_d = i.real + TS * (u.real - motor.r_s * i.real + w_e * motor.l_q * i.imag) / motor.l_d
+            i_q = (
+                i.imag
+                + TS
+                * (u.imag - motor.r_s * i.imag - w_e * (motor.l_d * i.real + motor.psi_f))
+                / motor.l_q
+            )
         i = i_d + 1j * i_q
         cost = cost + np.abs((i_ref - i) / i_base) ** 2
         cost = cost + lam_u * np.sum((STATES8[code] - last) ** 2, axis=1)
@@ -269,35 +283,227 @@ def direct_costs(motor, i_dq, theta, w_e, u_dc, i_ref, i_base, lam_u, prev, hori
     return seqs, cost
 
 
+@pytest.mark.parametrize("prediction", ["frozen_rotor", "rotor_motion"])
 @pytest.mark.parametrize("horizon", [1, 2, 3])
-def test_direct_mpc_equals_exhaustive_enumeration(horizon):
+def test_direct_mpc_equals_exhaustive_enumeration(horizon, prediction):
     """The sphere decoder's first switch positions are the first of the cheapest of all 8^N
     sequences (10,000 random currents, angles, speeds, references, weights and switch states
-    in force); the compiled decoder, where numba is installed, decides the same, bit for bit."""
+    in force; 2,000 with the rotor's motion, the period's exact solution held to the plant's
+    integrator in test_prediction.py); the compiled decoder, where numba is installed, decides
+    the same, bit for bit."""
     from predictive_drive.core.control.kernels import compiled_sphere_decoder, kernel_unavailable
     from predictive_drive.core.control.mpc_pmsm import current_problem
     from predictive_drive.core.control.search import sphere_decode
+    from predictive_drive.core.machines.pmsm import pmsm_exact_step
 
     compiled = compiled_sphere_decoder() if kernel_unavailable() is None else None
     c = PMSMCoefficients.of(IPMSM)
     i_base = 15.0 / (1.5 * 3 * 0.2264)
     rng = random.Random(20 + horizon)
-    for _ in range(CASES):
+    motion = prediction == "rotor_motion"
+    for _ in range(CASES if not motion else CASES // 5):
         i = complex(rng.uniform(-10, 5), rng.uniform(-25, 25))
         ref = complex(rng.uniform(-10, 5), rng.uniform(-25, 25))
         theta, w_e = rng.uniform(0, 2 * math.pi), rng.uniform(-400, 400)
         lam_u, prev = rng.choice([0.001, 0.01, 0.1, 1.0]), tuple(STATES8[rng.randrange(8)])
+        exact = pmsm_exact_step(c, TS, w_e) if motion else None
         problem = current_problem(
             c, ts=TS, i_dq=i, theta_e=theta, w_e=w_e, u_dc=312.0, i_ref=ref, i_base=i_base,
-            lambda_u=lam_u, u_prev=prev, horizon=horizon,
+            lambda_u=lam_u, u_prev=prev, horizon=horizon, exact=exact,
         )  # fmt: skip
         found = sphere_decode(problem.v.tolist(), problem.ubar.tolist())
-        seqs, cost = direct_costs(IPMSM, i, theta, w_e, 312.0, ref, i_base, lam_u, prev, horizon)
+        seqs, cost = direct_costs(
+            IPMSM, i, theta, w_e, 312.0, ref, i_base, lam_u, prev, horizon, exact
+        )
         best = cost.min()
         near = np.flatnonzero(cost <= best + 1e-9 * (1.0 + best))
         firsts = {tuple(STATES8[seqs[j, 0]]) for j in near}
-        assert found.sequence[:3] in firsts, (i, ref, theta, w_e, lam_u, prev)
+        assert problem.in_time(found.sequence)[:3] in firsts, (i, ref, theta, w_e, lam_u, prev)
         # the decoder's distance is the cost less the problem's constant
         assert found.cost + problem.constant == pytest.approx(best, rel=1e-7, abs=1e-9)
         if compiled is not None:
             assert compiled(problem.v, problem.ubar) == found
+
+
+def _commutations(seq, prev):
+    periods = [tuple(seq[i : i + 3]) for i in range(0, len(seq), 3)]
+    return sum(sum(a != b for a, b in zip(x, y)) for x, y in zip([prev, *periods], periods))
+
+
+def _same_voltages(seq):
+    """Every sequence applying the voltages of ``seq``: 000 and 111 exchanged at its zeros."""
+    periods = [tuple(seq[i : i + 3]) for i in range(0, len(seq), 3)]
+    zero = ((0, 0, 0), (1, 1, 1))
+    options = [zero if p in zero else (p,) for p in periods]
+    return [sum(choice, ()) for choice in itertools.product(*options)]
+
+
+def _pmsm_state(i_ab: complex, theta_e: float, omega_m: float) -> State:
+    nan = math.nan
+    values = dict.fromkeys(State._fields, nan)
+    values.update(k=0.0, t=0.0, i_alpha=i_ab.real, i_beta=i_ab.imag, omega_m=omega_m,
+                  theta_e=theta_e, u_dc=312.0)  # fmt: skip
+    return State(**values)
+
+
+@pytest.mark.parametrize(("horizon", "lam_u"), [(2, 1e-4), (3, 1e-4), (4, 0.01), (5, 0.01)])
+def test_direct_mpc_breaks_exact_ties_to_the_smallest_sequence(horizon, lam_u):
+    """Sequences that differ only in 000 against 111 give the same currents, so with equal
+    commutation counts they cost exactly the same: the controller's plan is the smallest of
+    them, every time (the decoder's distance, rounded differently for each, does not decide),
+    and never one with more commutations than another of them. A closed loop of 600 periods on
+    the controller's own model at 1000 r/min, T* = 15 N·m, where the zero vectors come often."""
+    sc = load_scenario("ipmsm_steady_mpc")
+    params = dataclasses.replace(sc.controller, horizon=horizon, lambda_u=lam_u)
+    ctrl = make_controller("mpc_pmsm", params, ts=TS)
+    c = PMSMCoefficients.of(params.motor)
+    ref = Reference(0.0, 0.0, 15.0, 0.24, 0.0)
+    i_ab, theta, w_m = 0j, 0.3, 1000 * math.pi / 30
+    ties = 0
+    for _ in range(600):
+        prev = ctrl.switches
+        cmd = ctrl.step(_pmsm_state(i_ab, theta % (2 * math.pi), w_m), ref)
+        plan = ctrl.strategy.plan
+        variants = _same_voltages(plan)
+        fewest = min(_commutations(s, prev) for s in variants)
+        tied = sorted(s for s in variants if _commutations(s, prev) == fewest)
+        ties += len(tied) > 1
+        assert plan == tied[0], (plan, tied)
+        u_ab = 312.0 * clarke(cmd.duty_a, cmd.duty_b, cmd.duty_c)
+        i_ab, theta = pmsm_predict_current(c, TS, i_ab, theta, w_m, u_ab)
+    assert ties >= 5  # the rule was exercised
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 4, 7])
+def test_compiled_direct_mpc_is_the_reference_bit_for_bit(horizon):
+    """direct_mpc's decision compiled (kernels.compiled_direct_mpc: the problem and the
+    decoder) against the reference (mpc_pmsm.solve: mpc_pmsm.problem in plain floats and
+    search.sphere_decode), both predictions, with and without a guess (the shifted optimum),
+    with budgets that stop it and one that does not: the same V and ū to the bit, the same
+    sequence, distance, node count and completion."""
+    kernels = pytest.importorskip("predictive_drive.core.control.kernels")
+    if kernels.kernel_unavailable() is not None:
+        pytest.skip(kernels.kernel_unavailable())
+    from predictive_drive.core.control.mpc_pmsm import period_model, problem, solve
+    from predictive_drive.core.machines.pmsm import pmsm_exact_step
+
+    compiled, compiled_problem = kernels.compiled_direct_mpc(), kernels.compiled_problem()
+    c = PMSMCoefficients.of(IPMSM)
+    i_base = 15.0 / (1.5 * 3 * 0.2264)
+    rng = random.Random(40 + horizon)
+    stopped = 0
+    for _ in range(150):
+        w_e = rng.uniform(-400, 400)
+        exact = pmsm_exact_step(c, TS, w_e) if rng.random() < 0.5 else None
+        model = period_model(c, TS, w_e, exact)
+        state = (rng.uniform(-10, 5), rng.uniform(-25, 25), rng.uniform(0, 2 * math.pi),
+                 w_e * TS, 312.0, rng.uniform(-10, 5), rng.uniform(-25, 25))  # fmt: skip
+        lam, prev = rng.choice([1e-4, 0.01, 0.1]), tuple(int(x) for x in STATES8[rng.randrange(8)])
+        v, ubar, _ = problem(model, horizon, state, i_base, lam, prev)
+        cv, cu = compiled_problem(model, horizon, state, i_base, lam, prev)
+        assert np.array_equal(cv, np.array(v)) and np.array_equal(cu, np.array(ubar))
+        first = solve(model, horizon, state, i_base, lam, prev, (), 0)
+        shifted = first.sequence[3:] + first.sequence[:3]
+        for guess in ((), shifted):
+            for budget in (0, 3 * horizon + 2, 40):
+                want = solve(model, horizon, state, i_base, lam, prev, guess, budget)
+                got = compiled(model, horizon, state, i_base, lam, prev, guess, budget)
+                assert got == want, (guess, budget)
+                stopped += not want.complete
+    assert stopped > 50 or horizon == 1  # the budgets were reached
+
+
+def _im_prediction(rng, coef, lam, volts):
+    psi = 0.71 * cmath.exp(1j * rng.uniform(-math.pi, math.pi)) * rng.uniform(0.95, 1.05)
+    i = rng.uniform(0, 8) * cmath.exp(1j * rng.uniform(-math.pi, math.pi))
+    lam_sw = rng.choice([0.0, 0.05, 0.3])
+    m = IMPrediction(coef, TS, lam, False, SwitchingEffort(lam_sw) if lam_sw else None)
+    m.prepare(i, psi, rng.uniform(-300, 300), volts)
+    m.switching(STATE_OF[rng.randrange(8)])
+    return m, rng.uniform(-7.5, 7.5), 0.71
+
+
+def _pmsm_prediction(rng, c, volts):
+    i_ab = complex(rng.uniform(-8, 4), rng.uniform(-25, 25)) * cmath.exp(1j * rng.uniform(0, 7))
+    theta, w_e = rng.uniform(0, 2 * math.pi), rng.uniform(-400, 400)
+    lam_sw = rng.choice([0.0, 0.01, 0.05])
+    m = PMSMPrediction(c, TS, 0.75, 0.15, SwitchingEffort(lam_sw) if lam_sw else None)
+    m.rotor_motion = rng.random() < 0.5
+    m.prepare(i_ab.real, i_ab.imag, theta, 312.0, w_e)
+    m.theta_e, m.w_e, m.volts = theta, w_e, volts
+    m.switching(STATE_OF[rng.randrange(8)])
+    return m, rng.uniform(-30, 30), rng.uniform(0.2, 0.3)
+
+
+@pytest.mark.parametrize("horizon", [2, 3, 5])
+@pytest.mark.parametrize("family", ["mptc_im", "mptc_pmsm"])
+def test_compiled_branch_and_bound_is_the_reference_bit_for_bit(im, family, horizon):
+    """mptc's branch and bound compiled (kernels.compiled_branch_and_bound, each family's
+    stages) against search.branch_and_bound of the family's horizon_stages: the same plan,
+    cost, node count and completion, from random states, with and without a guess and a
+    switching effort, with budgets that stop it and none; the PMSM with both predictions."""
+    kernels = pytest.importorskip("predictive_drive.core.control.kernels")
+    if kernels.kernel_unavailable() is not None:
+        pytest.skip(kernels.kernel_unavailable())
+    compiled = kernels.compiled_branch_and_bound()
+    s = make_strategy(family, "mptc")
+    rng = random.Random(50 + horizon)
+    stopped = 0
+    for _ in range(200 if horizon < 5 else 40):
+        if family == "mptc_im":
+            m, t_ref, psi_ref = _im_prediction(rng, im[0], im[1], tuple(vector_voltages(582.0)))
+        else:
+            m, t_ref, psi_ref = _pmsm_prediction(
+                rng, PMSMCoefficients.of(IPMSM), vector_voltages(312.0)
+            )
+        m.horizon = horizon
+        plan = tuple(rng.randrange(7) for _ in range(horizon)) if rng.random() < 0.5 else ()
+        for budget in (0, 7 * horizon + 7, 140):
+            m.budget = budget
+            out = []
+            for search in (None, compiled):
+                m.compiled = search
+                s.plan = plan
+                out.append((s.decide(m, t_ref, psi_ref), s.found))
+            assert out[0] == out[1], budget
+            stopped += not out[0][1].complete
+    assert stopped > 20  # the budgets were reached
+
+
+def test_a_budget_applies_the_best_so_far_and_report_counts_the_steps(tmp_path, capsys):
+    """direct_mpc at N = 10 with node_budget 1,500: a step whose search ran out records
+    suboptimal = 1 and exactly 1,500 nodes, the others 0 and at most that; report says
+    "suboptimal steps: n of N" with the recording's count. Every decision is the decoder's own
+    (held bit for bit by test_compiled_direct_mpc_is_the_reference_bit_for_bit)."""
+    from predictive_drive.api.report import details_of, evaluate, report
+    from predictive_drive.api.run import run
+    from predictive_drive.cli.common import print_recording
+
+    settings = {"torque_controller.horizon": 10, "torque_controller.node_budget": 1500}
+    r = run("ipmsm_steady_mpc", engine="inprocess", duration=0.05, out=tmp_path / "b",
+            settings=settings)  # fmt: skip
+    ev = evaluate(r.bag)
+    sub, cal = ev.trace.col("command", "suboptimal"), ev.trace.col("command", "cal")
+    assert set(np.unique(sub)) == {0.0, 1.0} and (sub == 1.0).sum() > 20
+    assert np.all(cal[sub == 1.0] == 1500) and np.all(cal[sub == 0.0] <= 1500)
+    d = details_of(ev)
+    assert (d.suboptimal_steps, d.searched_steps) == (int((sub == 1.0).sum()), len(sub))
+    print_recording(report(r.bag))
+    assert f"suboptimal steps: {d.suboptimal_steps} of {len(sub)}" in capsys.readouterr().out
+
+
+def test_a_compiled_search_is_made_at_its_first_call_and_refused_without_numba(monkeypatch):
+    """auto: the kernel where numba is installed, made when first called (a controller that
+    never searches never imports numba), the reference where it is not; compiled without
+    numba: ConfigError naming the key and the reason."""
+    from predictive_drive.core.control import base
+
+    made = []
+    search = base.compiled("auto", "search", lambda: made.append(1) or (lambda *args: args))
+    assert made == [] and search(1, 2) == (1, 2) and search(3) == (3,) and made == [1]
+    assert base.compiled("python", "search", lambda: made.append(2)) is None
+    monkeypatch.setattr(base, "kernel_unavailable", lambda: "numba is not installed")
+    assert base.compiled("auto", "decoder", lambda: made.append(3)) is None
+    with pytest.raises(ConfigError, match="torque_controller.decoder: compiled, but numba"):
+        base.compiled("compiled", "decoder", lambda: made.append(4))
+    assert made == [1]

@@ -100,6 +100,10 @@ NOT_RUN = {
     "mean_current runs five of its cells",
     "python test/continuous.py": "test_svpwm_distortion_is_the_fft_of_its_continuous_waveform "
     "runs two of its points through the same code (continuous.compare)",
+    "predictive-drive run ipmsm_steady_mpc --engine inprocess --set torque_controller.horizon=10": (
+        "5,000 steps at N = 10; test_a_budget_applies_the_best_so_far_and_report_counts_the_steps "
+        "runs it for 0.05 s with a budget and reads report's line"
+    ),
     # docs/reproduction.md
     "predictive-drive reproduce fronts": "616 runs, 13-31 min here; test_fronts.py runs a "
     "small study through the same code (api.fronts.reproduce_fronts)",
@@ -196,6 +200,13 @@ NOT_RUN = {
     "predictive-drive bench": "test_every_verb_runs_from_the_install (bench --quick)",
     "predictive-drive bench --json": "test_every_verb_runs_from_the_install (bench --quick --json)",
     "python test/writer_bench.py": "a benchmark: it prints figures, asserts none",
+    "predictive-drive bench --json --no-ros": (
+        "test_every_verb_runs_from_the_install (bench --quick --json); a benchmark"
+    ),
+    "predictive-drive sweep ipmsm_steady_mpc --strategy direct_mpc --set "
+    "torque_controller.horizon=1,3,5,10 --set torque_controller.lambda_u=… --json": (
+        "64 runs up to N = 10 (minutes); test_sweep.py runs sweeps with --set and --json"
+    ),
     "predictive-drive run im_paper --engine inprocess": "the engine of test_core_metrics.py's "
     "runs; a command of the measurement it names",
     "make run": "the README's (shortened here)",

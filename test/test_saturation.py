@@ -54,7 +54,7 @@ LINEAR = PMSMSaturation(
 
 
 def command(k: int, pulses: tuple[float, ...]) -> Command:
-    return Command(k, k * TS, *pulses, *[math.nan] * 14)
+    return Command(k, k * TS, *pulses, *[math.nan] * (len(Command._fields) - 8))
 
 
 def random_pulses(rng: random.Random) -> tuple[float, ...]:

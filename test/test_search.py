@@ -93,3 +93,79 @@ def test_the_sphere_decoder_breaks_ties_to_the_smallest_sequence():
     """V = I, ū = ½: every binary U lies at the same distance; the rule takes the smallest."""
     got = sphere_decode(np.eye(4).tolist(), [0.5] * 4, (1, 1, 0, 1))
     assert got.sequence == (0, 0, 0, 0) and got.cost == 1.0
+
+
+@pytest.mark.parametrize("n", [1, 3, 6, 9])
+@pytest.mark.parametrize("levels", [(0, 1), (-1, 0, 1)], ids=["two-level", "three-level"])
+def test_the_compiled_decoder_is_the_reference_bit_for_bit(n, levels):
+    """The numba kernel against search.sphere_decode on the same problems, with and without a
+    guess (the first radius from a shifted optimum, or from any sequence): the same sequence,
+    the same distance to the last bit and the same node count."""
+    kernels = pytest.importorskip("predictive_drive.core.control.kernels")
+    if kernels.kernel_unavailable() is not None:
+        pytest.skip(kernels.kernel_unavailable())
+    compiled = kernels.compiled_sphere_decoder()
+    rng = np.random.default_rng(100 + n)
+    for trial in range(60):
+        a = rng.standard_normal((n + 2, n))
+        h = a.T @ a + rng.choice([1e-3, 0.1, 1.0]) * np.eye(n)
+        v = np.linalg.cholesky(h).T
+        ubar = v @ rng.uniform(min(levels) - 0.5, max(levels) + 0.5, n)
+        first = sphere_decode(v.tolist(), ubar.tolist(), (), levels)
+        shifted = (*first.sequence[1:], first.sequence[-1])
+        for guess in ((), shifted, first.sequence, tuple(rng.choice(levels, n).tolist())):
+            want = sphere_decode(v.tolist(), ubar.tolist(), guess, levels)
+            got = compiled(v, ubar, guess, levels)
+            assert got == want, (trial, guess)
+            assert type(got.cost) is float and type(got.nodes) is int
+
+
+@pytest.mark.parametrize("search", ["branch_and_bound", "sphere_decode"])
+def test_a_budget_stops_the_search_with_the_best_sequence_found_so_far(search):
+    """Within ``budget`` nodes, once it holds a complete sequence, the search stops and
+    returns the best it has found, ``complete`` False: exactly the budget's nodes (the tree
+    search counts a node's children at once, at most six more, and its guess's cost first), a
+    cost that is its sequence's
+    own and falls as the budget grows to the unlimited search's, which a budget at or above
+    its node count gives bit for bit; a budget below the first leaf returns the guess."""
+    rng = np.random.default_rng(7)
+    stopped = 0
+    for seed in range(60):
+        if search == "branch_and_bound":
+            expand, horizon = random_tree(seed), 4
+            guess = tuple(rng.integers(0, 7, horizon).tolist())
+
+            def run(budget, guess=guess, expand=expand, horizon=horizon):
+                return branch_and_bound(expand, (), horizon, guess, budget)
+
+            def cost_of(seq, expand=expand):
+                return sequence_cost(expand, (), seq)[0]
+
+            step, floor = 7, 7 * horizon  # the guess's own cost takes a node's children a level
+        else:
+            n = 8
+            a = rng.standard_normal((n + 2, n))
+            v = np.linalg.cholesky(a.T @ a + 0.05 * np.eye(n)).T
+            ubar = v @ rng.uniform(-0.5, 1.5, n)
+            guess = tuple(rng.integers(0, 2, n).tolist())
+
+            def run(budget, v=v, ubar=ubar, guess=guess):
+                return sphere_decode(v.tolist(), ubar.tolist(), guess, budget=budget)
+
+            def cost_of(seq, v=v, ubar=ubar):
+                return float(np.sum((ubar - v @ np.array(seq)) ** 2))
+
+            step, floor = 1, 0
+        full = run(0)
+        assert full.complete
+        assert run(full.nodes) == full and run(full.nodes + 5) == full
+        assert run(1).sequence == guess and not run(1).complete
+        last = float("inf")
+        for budget in range(step, full.nodes - step + 1, max(step, full.nodes // 12)):
+            got = run(budget)
+            assert not got.complete and budget <= got.nodes < max(budget, floor) + step
+            assert got.cost == pytest.approx(cost_of(got.sequence), rel=1e-12)
+            assert full.cost <= got.cost <= last
+            last = got.cost
+            stopped += 1
+    assert stopped > 100

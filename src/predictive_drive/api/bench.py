@@ -172,7 +172,9 @@ class HorizonRate:
     controller; no recording) over ``steps`` from the start, that as a share of the call's core
     loop (``of_core``) and of the core loop run right before and after it (``of_core_near``: the
     machine drifts within a call), the controller's compute time per step (median, 99th
-    percentile) and the nodes its search visited per step (mean)."""
+    percentile), the nodes its search visited per step (mean and 99th percentile: the compute
+    time's spread without the machine's) and the steps whose search ran out of its node budget
+    (``suboptimal_steps``, with the law's default budget)."""
 
     strategy: str
     scenario: str
@@ -184,6 +186,8 @@ class HorizonRate:
     compute_us_p99: float
     nodes_mean: float
     decoder: str
+    suboptimal_steps: int = 0
+    nodes_p99: float = math.nan
     core_near_steps_per_s: float = math.nan
     of_core_near: float = math.nan
 
@@ -197,20 +201,24 @@ def horizon_rate(
     """Time ``strategy`` at ``horizon`` on ``scenario`` for ``steps`` (see :class:`HorizonRate`)."""
     sc = load_scenario(scenario, strategy=strategy)
     sc = dataclasses.replace(sc, controller=dataclasses.replace(sc.controller, horizon=horizon))
-    decoder = getattr(sc.controller, "decoder", "")
-    if decoder == "auto":
-        from ..core.control.kernels import kernel_unavailable
+    from ..core.control.kernels import load_kernels
 
-        decoder = "python" if kernel_unavailable() else "compiled"
-    run_inprocess(sc, steps=min(steps, 50))  # a compiled kernel loads before the clock starts
+    # a compiled kernel loads before the clock starts (im_paper's soft start searches nothing
+    # for its first 963 steps)
+    compiled = load_kernels()
+    decoder = getattr(sc.controller, "decoder", getattr(sc.controller, "search", ""))
+    if decoder == "auto":
+        decoder = "compiled" if compiled else "python"
+    run_inprocess(sc, steps=min(steps, 50))
     t0 = time.perf_counter()
     tr = run_inprocess(sc, steps=steps)
     rate = steps / (time.perf_counter() - t0)
-    ns = tr.col("command", "compute_ns")
+    ns, nodes = tr.col("command", "compute_ns"), tr.col("command", "cal")
     return HorizonRate(
         strategy, scenario, horizon, steps, rate, rate / core,
         float(np.median(ns)) / 1e3, float(np.percentile(ns, 99)) / 1e3,
-        float(tr.col("command", "cal").mean()), decoder or "-",
+        float(nodes.mean()), decoder or "-", int((tr.col("command", "suboptimal") == 1.0).sum()),
+        float(np.percentile(nodes, 99)),
     )  # fmt: skip
 
 

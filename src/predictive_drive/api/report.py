@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..core.analysis import LoadStep, load_steps
 from ..core.losses import Overheat, overheats
 from ..core.machines import Machine
@@ -180,6 +182,10 @@ class RecordingDetails:
     device: str = ""
     rated_tj: tuple[float, float] = (math.nan, math.nan)  #: transistor's, diode's, °C
     overheats: list[Overheat] = field(default_factory=list)
+    #: the steps a long horizon's search decided, and those of them whose node budget ran out
+    #: (the best sequence found so far applied: docs/physics.md#a-budget-per-step)
+    searched_steps: int = 0
+    suboptimal_steps: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -188,6 +194,8 @@ class RecordingDetails:
             "outcome": self.outcome,
             "own_nodes": [dataclasses.asdict(n) for n in self.own_nodes],
             "replay_of": self.replay_of,
+            "searched_steps": self.searched_steps,
+            "suboptimal_steps": self.suboptimal_steps,
         }
         if self.device:
             out["device"] = self.device
@@ -204,6 +212,7 @@ class RecordingDetails:
 def details_of(ev: Evaluation) -> RecordingDetails:
     """The :class:`RecordingDetails` of a recording read back."""
     ts = ev.trace.ts
+    suboptimal = ev.trace.col("command", "suboptimal")
     return RecordingDetails(
         strategies=[
             SpanTimes(s.strategy, s.first, s.last, s.first * ts, (s.last + 1) * ts)
@@ -219,6 +228,8 @@ def details_of(ev: Evaluation) -> RecordingDetails:
         device="" if (d := ev.scenario.device) is None else d.name,
         rated_tj=(math.nan, math.nan) if d is None else (d.switch.t_j_max, d.diode.t_j_max),
         overheats=overheats(ev.trace, d),
+        searched_steps=int(np.isfinite(suboptimal).sum()),
+        suboptimal_steps=int((suboptimal == 1.0).sum()),
     )
 
 

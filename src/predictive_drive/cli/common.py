@@ -226,6 +226,12 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         print(f"  {'vectors':<{w}}{util}   {METRICS['utilization'].description}")
     d = r.details
     print_losses(m, d)
+    if d.searched_steps:
+        print(
+            f"  {'search':<11}suboptimal steps: {d.suboptimal_steps} of {d.searched_steps}   "
+            "steps whose search ran out of its node budget and applied the best sequence "
+            "found so far (torque_controller.node_budget)"
+        )
     if len(d.strategies) > 1:
         for sp in d.strategies:
             print(

@@ -237,6 +237,9 @@ class Command(NamedTuple):
     #: foc_injection: the demodulated, low-passed d(T/I)/dθ divided by k_t = 1.5·p·ψ_f (the
     #: torque per ampere at θ = 0), 1/rad (else NaN)
     mtpa_gradient: float
+    #: long horizons: 1 if the search ran out of its node budget and the best sequence found so
+    #: far was applied, 0 if it finished (the optimum); NaN: no search this step
+    suboptimal: float
     compute_ns: float  #: wall time of the control law alone, ns (not deterministic)
 
 

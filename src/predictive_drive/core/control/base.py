@@ -12,25 +12,39 @@ reference turned into three duties (SVPWM); the base does not care which.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from time import perf_counter_ns
 from typing import Any, ClassVar, NamedTuple, Protocol
 
+import numpy as np
+
 from ...errors import ConfigError
-from ..fields import flag, quantity
+from ..fields import choice, flag, quantity
 from ..inverter import VECTOR_STATES, active_then_zero, clarke, vector_voltages
 from ..machines import Machine
-from ..machines.pmsm import PMSMCoefficients, pmsm_predict_current
+from ..machines.pmsm import PMSMCoefficients, pmsm_exact_step, pmsm_predict_current
 from ..signals import Command, PhasePulses, Reference, State, new_record
+from .kernels import kernel_unavailable
+from .search import SearchResult
 
 __all__ = [
     "AFTER",
+    "AFTER_TABLE",
+    "NO_EFFORT_TABLE",
     "NO_EFFORT",
+    "NODE_BUDGET",
+    "budget_field",
+    "compiled",
+    "rows",
+    "search_field",
+    "SEARCHES",
+    "PREDICTIONS",
     "SWITCHABLE",
     "Controller",
     "check_horizon",
     "horizon_field",
     "parse_switch",
+    "prediction_field",
     "SwitchingEffort",
     "lambda_sw_field",
     "pmsm_predicted",
@@ -42,13 +56,34 @@ __all__ = [
 ]
 
 
-def pmsm_predicted(c: PMSMCoefficients, ts: float, state: State, u_ab: complex) -> State:
+def pmsm_predicted(
+    c: PMSMCoefficients, ts: float, state: State, u_ab: complex, *, rotor_motion: bool = False
+) -> State:
     """A PMSM family's :meth:`Controller._predict`: the measured current and angle one period
-    ahead under ``u_ab`` by the model ``c``."""
-    i, the = pmsm_predict_current(
-        c, ts, complex(state.i_alpha, state.i_beta), state.theta_e, state.omega_m, u_ab
-    )
+    ahead under ``u_ab`` by the model ``c`` — forward Euler in dq, or with ``rotor_motion`` the
+    period solved exactly at the measured speed (:func:`~..machines.pmsm.pmsm_exact_step`)."""
+    i_ab, omega_m = complex(state.i_alpha, state.i_beta), state.omega_m
+    exact = pmsm_exact_step(c, ts, c.p * omega_m) if rotor_motion else None
+    i, the = pmsm_predict_current(c, ts, i_ab, state.theta_e, omega_m, u_ab, exact=exact)
     return state._replace(i_alpha=i.real, i_beta=i.imag, theta_e=the % TWO_PI)
+
+
+#: how a PMSM finite-control-set family predicts the end of a period
+#: (docs/physics.md#predicting-the-pmsm-over-a-period)
+PREDICTIONS = ("frozen_rotor", "rotor_motion")
+
+
+def prediction_field() -> Any:
+    """The ``prediction`` field of the PMSM finite-control-set families (``mptc_pmsm``,
+    ``mpc_pmsm``): paper 001's model with the rotor frozen over the period, or the rotor's
+    motion through it."""
+    return choice(
+        "the model's period: frozen_rotor (paper 001: the currents at the period's end taken "
+        "at the rotor angle of its start, or forward Euler in dq for direct_mpc) or "
+        "rotor_motion (the rotor turning through the period at the measured speed)",
+        PREDICTIONS,
+        default="frozen_rotor",
+    )
 
 
 def delay_compensation() -> Any:
@@ -129,6 +164,68 @@ def horizon_field(strategies: str, maximum: int) -> Any:
     )
 
 
+#: the long horizons' default budget a step (docs/physics.md#a-budget-per-step): at N = 10
+#: about three times the median search's nodes on ipmsm_steady_mpc, so the slowest step takes
+#: about three times the median's time; an exact search finishes below it at N ≤ 5
+NODE_BUDGET = 8000
+
+
+def budget_field(unit: str, default: int) -> Any:
+    """The ``node_budget`` field of a family with long horizons: the most ``unit`` a step's
+    search evaluates (docs/physics.md#a-budget-per-step)."""
+    return quantity(
+        f"the most {unit} a step's search evaluates once it holds a complete sequence; "
+        "then the best found so far is applied and the step counted suboptimal (0: no limit)",
+        ge=0,
+        integer=True,
+        default=default,
+    )
+
+
+#: which implementation of a long horizon's search runs (:mod:`.kernels`)
+SEARCHES = ("auto", "compiled", "python")
+
+
+def search_field(what: str) -> Any:
+    """The field that picks a long horizon's search: ``what`` compiled (numba), in Python (the
+    reference) or auto (compiled where numba is installed); all decide alike, bit for bit."""
+    return choice(
+        f"{what}: compiled (numba), python (the reference), or auto (compiled where numba is "
+        "installed); every one decides the same, bit for bit",
+        SEARCHES,
+        default="auto",
+    )
+
+
+def compiled(
+    name: str, key: str, factory: Callable[[], Callable[..., SearchResult]]
+) -> Callable[..., SearchResult] | None:
+    """The compiled search ``factory`` makes where ``name`` (one of :data:`SEARCHES`) asks for
+    it and numba is installed — made at its first call, so a controller that never searches
+    never imports numba (a second or so); None for the Python reference; ConfigError (naming
+    ``torque_controller.<key>``) for ``compiled`` without numba."""
+    if name == "python":
+        return None
+    reason = kernel_unavailable()
+    if reason is not None:
+        if name == "compiled":
+            raise ConfigError(f"torque_controller.{key}: compiled, but {reason}")
+        return None
+    made: list[Callable[..., SearchResult]] = []
+
+    def search(*args: Any) -> SearchResult:
+        if not made:
+            made.append(factory())
+        return made[0](*args)
+
+    return search
+
+
+def rows(values: Sequence[complex]) -> np.ndarray:
+    """Complex numbers as rows (real, imaginary): how a compiled search takes them."""
+    return np.array([(v.real, v.imag) for v in values])
+
+
 def check_horizon(params: Any, strategies: tuple[str, ...]) -> None:
     """ConfigError if ``params`` (a family's settings) give a horizon to a law without one."""
     if params.horizon > 1 and params.strategy not in strategies:
@@ -164,6 +261,9 @@ AFTER = tuple(
         VECTOR_STATES[n]) for n in range(7))
     for c in range(8)
 )  # fmt: skip
+#: :data:`AFTER` and no switching effort, as a compiled search takes them
+AFTER_TABLE = np.array(AFTER, np.int64)
+NO_EFFORT_TABLE = np.zeros((8, 7))
 
 
 class Strategy(Protocol):
@@ -306,12 +406,19 @@ class Controller:
         raise NotImplementedError
 
     def command(
-        self, state: State, pulses: PhasePulses, diagnostics: tuple[float, ...], compute_ns: float
+        self,
+        state: State,
+        pulses: PhasePulses,
+        diagnostics: tuple[float, ...],
+        compute_ns: float,
+        suboptimal: float = NAN,
     ) -> Command:
         """The command record: the diagnostics are the command's
-        :data:`~predictive_drive.core.signals.COMMAND_DIAGNOSTICS`, in that order."""
+        :data:`~predictive_drive.core.signals.COMMAND_DIAGNOSTICS` but ``suboptimal`` (a
+        search's budget, NaN: no search), in that order."""
         return new_record(
-            Command, (state.k, state.t, *pulses, self._index, *diagnostics, compute_ns)
+            Command,
+            (state.k, state.t, *pulses, self._index, *diagnostics, suboptimal, compute_ns),
         )
 
     def decision_inputs(self, states: list[State]) -> list[Any] | None:
@@ -343,6 +450,8 @@ class Decision(NamedTuple):
     fraction: float  #: share of Ts the vector is applied, 0..1 (rest: zero vector)
     t_u: float  #: raw deadbeat time, s (NaN if none was computed)
     cal: int  #: predictions evaluated
+    #: a long horizon's search: 1.0 if its budget ran out, 0.0 if it finished; NaN: none
+    suboptimal: float = NAN
 
 
 class VectorController(Controller):
@@ -369,7 +478,7 @@ class VectorController(Controller):
         """Hook after the decision (the IM integrates its flux estimate with the applied voltage)."""
 
     def _command(self, d: Decision, state: State, compute_ns: float) -> Command:
-        vector, fraction, t_u, cal = d
+        vector, fraction, t_u, cal, suboptimal = d
         pulses, self.switches = active_then_zero(vector, fraction, self.switches)
         self._applied(d, state)
         # built in one piece (not through command()): this is every MPTC step's hot path
@@ -392,6 +501,7 @@ class VectorController(Controller):
                 NAN,
                 NAN,
                 NAN,
+                suboptimal,
                 compute_ns,
             ),
         )

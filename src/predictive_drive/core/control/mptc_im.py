@@ -15,22 +15,32 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.induction import InductionCoefficients, InductionMotor
 from ..signals import Reference, State, new_record
 from .base import (
     AFTER,
+    AFTER_TABLE,
     NO_EFFORT,
+    NO_EFFORT_TABLE,
+    NODE_BUDGET,
     Decision,
     SwitchingEffort,
     VectorController,
+    budget_field,
     check_horizon,
+    compiled,
     delay_compensation,
     horizon_field,
     lambda_sw_field,
+    rows,
+    search_field,
 )
-from .search import Expand, branch_and_bound
+from .kernels import IM_STAGE, BranchAndBound, compiled_branch_and_bound
+from .search import Expand, SearchResult, branch_and_bound
 
 __all__ = [
     "A0_FORMS",
@@ -80,6 +90,10 @@ class IMPrediction:
         "sw",
         "sw_zero",
         "horizon",
+        "budget",
+        "compiled",
+        "volt_rows",
+        "effort_table",
         "wr",
     )
 
@@ -100,6 +114,12 @@ class IMPrediction:
         #: force (``code``): ``sw`` for the whole period, ``sw_zero`` then the zero vector
         self.effort = effort
         self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
+        self.budget = 0  #: stage costs a search may evaluate (0: no limit)
+        #: the compiled branch and bound (None: search.branch_and_bound), with V0..V6 and the
+        #: switching effort's costs as it takes them
+        self.compiled: BranchAndBound | None = None
+        self.volt_rows = np.zeros((7, 2))
+        self.effort_table = NO_EFFORT_TABLE if effort is None else np.array(effort.full)
         self.code = 0
         self.sw: tuple[float, ...] = NO_EFFORT
         self.sw_zero: tuple[float, ...] = NO_EFFORT
@@ -124,6 +144,7 @@ class IMPrediction:
         self.psi = psi
         if volts is not self.volts:
             self.volts = volts
+            self.volt_rows = rows(volts)
             #: (n, V_n, Re V_n, Im V_n) of the active vectors
             self.active = tuple((n, v, v.real, v.imag) for n, v in enumerate(volts) if n)
         pr, pi, ir, ii = psi.real, psi.imag, i.real, i.imag
@@ -165,16 +186,25 @@ class MPTC:
 
     def __init__(self) -> None:
         self.plan: tuple[int, ...] = ()
+        self.found = SearchResult((), INF, 0)  #: the last search's result
 
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
         if m.horizon == 1:
             return _FULL_PERIOD[_argmin_full_period(m, torque_ref, flux_ref)]
         guess = (*self.plan[1:], self.plan[-1]) if self.plan else ()
-        found = branch_and_bound(
-            horizon_stages(m, torque_ref, flux_ref), m.root(), m.horizon, guess
-        )
-        self.plan = found.sequence
-        return new_record(Decision, (found.sequence[0], 1.0, NAN, found.nodes))
+        if m.compiled is not None:
+            i, psi, code = m.root()
+            found = m.compiled(
+                IM_STAGE, np.array(stage_constants(m, torque_ref, flux_ref)),
+                np.array((i.real, i.imag, psi.real, psi.imag)), code, m.volt_rows,
+                m.effort_table, AFTER_TABLE, m.volt_rows, m.horizon, guess, m.budget,
+            )  # fmt: skip
+        else:
+            stages = horizon_stages(m, torque_ref, flux_ref)
+            found = branch_and_bound(stages, m.root(), m.horizon, guess, m.budget)
+        self.plan, self.found = found.sequence, found
+        suboptimal = 0.0 if found.complete else 1.0
+        return new_record(Decision, (found.sequence[0], 1.0, NAN, found.nodes, suboptimal))
 
 
 class MPTCDB:
@@ -193,7 +223,7 @@ class MPTCDB:
             n, t_u = _argmin_with_duty(m, torque_ref, flux_ref)
             if n == 0:
                 return _FULL_PERIOD[0]
-        return new_record(Decision, (n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7))
+        return new_record(Decision, (n, min(max(t_u / m.ts, 0.0), 1.0), t_u, 7, NAN))
 
 
 class DBMPTC:
@@ -232,7 +262,7 @@ class DBMPTC:
             g += sw[n] if t_u >= ts else sw_zero[n] if t_u > 0.0 else sw[0]
             if g < best:
                 best, best_n, best_t, raw_best = g, n, t_u, t_raw
-        return new_record(Decision, (best_n, best_t / ts, raw_best, cal))
+        return new_record(Decision, (best_n, best_t / ts, raw_best, cal, NAN))
 
 
 #: the decision of a full-period vector chosen among all 7, by vector
@@ -244,16 +274,24 @@ MAX_HORIZON = 6
 HORIZON_STRATEGIES = ("mptc",)
 
 
+def stage_constants(
+    m: IMPrediction, torque_ref: float, flux_ref: float
+) -> tuple[float, float, float, float, float, float, float, float, float, float, float]:
+    """What :func:`horizon_stages` computes with, as the compiled search takes it: a = a_ii +
+    jω_r, b = b_iψ - jω_r c_w (paper 000 eq 4-6), Ts, R_s, Ts·c_w, 1.5p, λ_ψ, T*, ψ*."""
+    a_ii, b_ip, cw, rs, p, tk, _, _ = m.c
+    return (a_ii, m.wr, b_ip, -m.wr * cw, m.ts, rs, m.ts * cw, tk, m.lam, torque_ref, flux_ref)
+
+
 def horizon_stages(m: IMPrediction, torque_ref: float, flux_ref: float) -> Expand:
     """mptc's stage over a horizon (:data:`~.search.Expand`): from a node (i_s, ψ_s, code of
     the switching state in force) each vector's predicted node one period on — the one-step
     law's forward Euler with ω frozen, the same arithmetic — and its stage cost
     |T* - T| + λ_ψ |ψ* - |ψ|| + λ_sw × commutations."""
-    a_ii, b_ip, cw, rs, p, tk, _, _ = m.c
-    ts, lam, volts = m.ts, m.lam, m.volts
-    a = complex(a_ii, m.wr)
-    b = complex(b_ip, -m.wr * cw)
-    gain_i = ts * cw
+    ar, ai, br, bi, ts, rs, gain_i, tk, lam, _, _ = stage_constants(m, torque_ref, flux_ref)
+    volts = m.volts
+    a = complex(ar, ai)
+    b = complex(br, bi)
     full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
 
     def expand(node: tuple[complex, complex, int]) -> list[tuple[float, int, Any]]:
@@ -328,6 +366,8 @@ class InductionControllerParams:
     lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
     lambda_sw: float = lambda_sw_field("N·m")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
+    node_budget: int = budget_field("stage costs", NODE_BUDGET)
+    search: str = search_field("mptc's branch and bound over a horizon")
     soft_start_flux: float = quantity(
         "soft start until the flux estimate first reaches this", "Wb", ge=0, default=0.65
     )
@@ -368,6 +408,8 @@ class InductionController(VectorController):
         self._pred = IMPrediction(
             c, ts, params.lambda_psi, params.a0_form == "paper_printed", effort
         )
+        self._pred.budget = params.node_budget
+        self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
         super().__init__(params, ts=ts)
         self.psi_hat = 0j
         self._psi_next = 0j  #: delay compensation: ψ̂ at k+1 under the voltage in force

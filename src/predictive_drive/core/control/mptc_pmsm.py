@@ -4,7 +4,9 @@
 The controller sees the measured currents and rotor angle and forms the stator flux and torque with
 its own L_d, L_q, ψ_f (docs/physics.md#what-the-controller-sees). Each candidate vector is predicted
 with paper 001 eq 1-3 — the stator-flux frame, R_s neglected, the rotor frozen over Ts — and its
-torque from the predicted flux with the saliency term (for L_d = L_q this is eq 2 exactly). Cost eq
+torque from the predicted flux with the saliency term (for L_d = L_q this is eq 2 exactly); with
+``prediction: rotor_motion`` the torque is taken at the rotor's angle at the period's end
+(docs/physics.md#predicting-the-pmsm-over-a-period). Cost eq
 5, normalised; T* is guarded by T_floor because it crosses zero at every load reversal. Candidates
 are evaluated in ascending vector order and the first strict minimum wins. The restricted candidate
 sets of strategies 2 and 3 are data (:mod:`.candidates`) that ``predictive-drive analyze``
@@ -19,6 +21,8 @@ from dataclasses import dataclass
 from math import asin, cos, sin, sqrt
 from typing import Any
 
+import numpy as np
+
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.magnetics import PMSMSaturation
@@ -26,19 +30,28 @@ from ..machines.pmsm import PMSM, PMSMCoefficients
 from ..signals import Reference, State
 from .base import (
     AFTER,
+    AFTER_TABLE,
     NO_EFFORT,
+    NO_EFFORT_TABLE,
+    NODE_BUDGET,
     Decision,
     SwitchingEffort,
     VectorController,
+    budget_field,
     check_horizon,
+    compiled,
     delay_compensation,
     horizon_field,
     lambda_sw_field,
     pmsm_predicted,
+    prediction_field,
+    rows,
+    search_field,
 )
 from .candidates import TABLES
+from .kernels import PMSM_STAGE, BranchAndBound, compiled_branch_and_bound
 from .maps import ApparentModel, flux_map_of
-from .search import Expand, branch_and_bound
+from .search import Expand, SearchResult, branch_and_bound
 
 __all__ = [
     "PMSM_STRATEGIES",
@@ -74,6 +87,10 @@ class PMSMPrediction:
 
     After :meth:`prepare`: ``te`` (N·m), ``psi`` (|ψ̂_s|, Wb), ``delta`` (torque angle: ψ̂_s from the
     rotor d-axis, rad), ``theta_psi`` (ψ̂_s in αβ, [0, 2π)), ``q`` (|V|·Ts/|ψ̂_s|, eq 3).
+
+    ``rotor_motion``: the torque at the period's end is taken at the rotor's angle there, the
+    rotor having turned ``turn`` = ω_e·Ts under the predicted flux; else (paper 001) at the
+    angle of the period's start (docs/physics.md#predicting-the-pmsm-over-a-period).
     """
 
     __slots__ = (
@@ -95,6 +112,11 @@ class PMSMPrediction:
         "theta_e",
         "w_e",
         "volts",
+        "rotor_motion",
+        "turn",
+        "budget",
+        "compiled",
+        "effort_table",
     )
 
     def __init__(
@@ -117,9 +139,16 @@ class PMSMPrediction:
         self.sw: tuple[float, ...] | None = None
         self.code = 0  #: the switching state in force, S_a·4 + S_b·2 + S_c
         self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
+        self.budget = 0  #: stage costs a search may evaluate (0: no limit)
+        #: the compiled branch and bound (None: search.branch_and_bound), and the switching
+        #: effort's costs as it takes them
+        self.compiled: BranchAndBound | None = None
+        self.effort_table = NO_EFFORT_TABLE if effort is None else np.array(effort.full)
         self.theta_e = 0.0  #: rotor angle at the sample, rad
         self.w_e = 0.0  #: electrical speed, rad/s
         self.volts: tuple[complex, ...] = ()
+        self.rotor_motion = False
+        self.turn = 0.0  #: rad the rotor turns before the torque is evaluated
 
     def use(self, c: PMSMCoefficients) -> None:
         """Predict with the model ``c`` from now on (a flux map's apparent model, see
@@ -133,9 +162,13 @@ class PMSMPrediction:
         if self.effort is not None:
             self.sw = self.effort.full[self.code]
 
-    def prepare(self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float) -> None:
-        """The estimate from the measured currents, rotor angle and DC link."""
+    def prepare(
+        self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float, w_e: float = 0.0
+    ) -> None:
+        """The estimate from the measured currents, rotor angle, DC link and (for
+        ``rotor_motion``) electrical speed, rad/s."""
         c = self.c
+        self.turn = w_e * self.ts if self.rotor_motion else 0.0
         co, si = math.cos(theta_e), math.sin(theta_e)
         i_d = i_alpha * co + i_beta * si
         i_q = i_beta * co - i_alpha * si
@@ -157,8 +190,18 @@ class PMSMPrediction:
         self.delta = delta
         self.theta_psi = theta_psi
         self.q = q = (2.0 / 3.0) * u_dc * self.ts / psi
+        if self.rotor_motion:  # the flux's angle from the rotor at the period's end; V0's torque
+            delta = delta - self.turn
+            te = self._torque(psi, delta)
         #: what the candidate loop reads, in one tuple: one load per decision
         self.args = (*self.consts, psi, delta, theta_psi, q, te)
+
+    def _torque(self, psi: float, delta: float) -> float:
+        """The torque of flux linkage ``psi`` (Wb) at ``delta`` (rad) from the rotor's d axis."""
+        c = self.c
+        i_d = (psi * math.cos(delta) - c.psi_f) / c.l_d
+        i_q = psi * math.sin(delta) / c.l_q
+        return c.torque_k * i_q * (c.psi_f + (c.l_d - c.l_q) * i_d)
 
     def predict(self, n: int) -> tuple[float, float]:
         """(T_e(k+1), |ψ_s(k+1)|) if vector ``n`` is applied for Ts (paper 001 eq 1-3).
@@ -166,7 +209,6 @@ class PMSMPrediction:
         The readable form of one candidate; :func:`_argmin` inlines the same arithmetic in its
         loop (a call per candidate would be a third of the candidate's cost). Tests hold both to
         the independent vector form ψ(k+1) = ψ(k) + V·Ts."""
-        c = self.c
         if n == 0:
             r, d1 = 1.0, self.delta
         else:
@@ -175,9 +217,7 @@ class PMSMPrediction:
             r = math.sqrt(1.0 + q * q + 2.0 * q * math.cos(a))  # eq 1
             d1 = self.delta + math.asin(q * math.sin(a) / r)  # eq 2's angle
         psi1 = self.psi * r
-        i_d1 = (psi1 * math.cos(d1) - c.psi_f) / c.l_d
-        i_q1 = psi1 * math.sin(d1) / c.l_q
-        return c.torque_k * i_q1 * (c.psi_f + (c.l_d - c.l_q) * i_d1), psi1
+        return self._torque(psi1, d1 - self.turn), psi1
 
 
 def _argmin(m: PMSMPrediction, active: tuple[int, ...], t_ref: float, psi_ref: float) -> int:
@@ -236,31 +276,57 @@ class MPTC:
 
     def __init__(self) -> None:
         self.plan: tuple[int, ...] = ()
+        self.found = SearchResult((), INF, 0)  #: the last search's result
 
     def decide(self, m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Decision:
         if m.horizon == 1:
             return _DECISIONS[7][_argmin(m, ACTIVE_VECTORS, torque_ref, flux_ref)]
         guess = (*self.plan[1:], self.plan[-1]) if self.plan else ()
         root = (m.psi * complex(math.cos(m.theta_psi), math.sin(m.theta_psi)), 0, m.code)
-        found = branch_and_bound(horizon_stages(m, torque_ref, flux_ref), root, m.horizon, guess)
-        self.plan = found.sequence
-        return Decision(found.sequence[0], 1.0, NAN, found.nodes)
+        if m.compiled is not None:
+            constants, steps, turn = stage_constants(m, torque_ref, flux_ref)
+            psi = root[0]
+            found = m.compiled(
+                PMSM_STAGE, np.array(constants), np.array((psi.real, psi.imag, 0.0, 0.0)),
+                m.code, rows(steps), m.effort_table, AFTER_TABLE, rows(turn), m.horizon,
+                guess, m.budget,
+            )  # fmt: skip
+        else:
+            stages = horizon_stages(m, torque_ref, flux_ref)
+            found = branch_and_bound(stages, root, m.horizon, guess, m.budget)
+        self.plan, self.found = found.sequence, found
+        return Decision(found.sequence[0], 1.0, NAN, found.nodes, 0.0 if found.complete else 1.0)
+
+
+def stage_constants(
+    m: PMSMPrediction, torque_ref: float, flux_ref: float
+) -> tuple[tuple[float, ...], list[complex], list[complex]]:
+    """What :func:`horizon_stages` computes with, as the compiled search takes it: (ψ_f, 1/L_d,
+    1/L_q, 1.5p, L_d - L_q, 1/T*, 1/ψ*, T*, ψ*), each vector's ψ step V·Ts, and each period's
+    turn into the rotor frame e^{-jθ_e(ℓ)}."""
+    pf, ild, ilq, tk, dl, t_floor = m.consts
+    inv_t = 1.0 / (torque_ref if torque_ref > t_floor else -torque_ref if -torque_ref > t_floor
+                   else t_floor)  # fmt: skip
+    inv_p = 1.0 / flux_ref
+    steps = [v * m.ts for v in m.volts]
+    end = 1 if m.rotor_motion else 0
+    turn = [complex(math.cos(-m.theta_e - (ell + end) * m.w_e * m.ts),
+                    math.sin(-m.theta_e - (ell + end) * m.w_e * m.ts))
+            for ell in range(m.horizon)]  # fmt: skip
+    return (pf, ild, ilq, tk, dl, inv_t, inv_p, torque_ref, flux_ref), steps, turn
 
 
 def horizon_stages(m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Expand:
     """mptc's stage over a horizon (:data:`~.search.Expand`): from a node (ψ_s in αβ, the
     period ℓ it starts, the code of the switching state in force) each vector's ψ_s one period
     on by eq 1-3 in vector form, ψ + V·Ts (R_s neglected), its torque in the rotor frame at
-    the rotor's angle of that period (frozen over it, as eq 1-3 take it: θ_e + ℓ·ω_e·Ts), and
-    the stage cost sqrt(((T - T*)/T*)² + ((|ψ| - ψ*)/ψ*)²) + λ_sw × commutations."""
-    pf, ild, ilq, tk, dl, t_floor = m.consts
-    inv_t = 1.0 / (torque_ref if torque_ref > t_floor else -torque_ref if -torque_ref > t_floor
-                   else t_floor)  # fmt: skip
-    inv_p = 1.0 / flux_ref
-    steps = [v * m.ts for v in m.volts]
+    the rotor's angle of that period's start (frozen over it, as eq 1-3 take it:
+    θ_e + ℓ·ω_e·Ts) or, with ``rotor_motion``, of its end (θ_e + (ℓ+1)·ω_e·Ts), and the stage
+    cost sqrt(((T - T*)/T*)² + ((|ψ| - ψ*)/ψ*)²) + λ_sw × commutations."""
+    (pf, ild, ilq, tk, dl, inv_t, inv_p, _, _), steps, turn = stage_constants(
+        m, torque_ref, flux_ref
+    )
     full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
-    turn = [complex(math.cos(-m.theta_e - ell * m.w_e * m.ts), math.sin(-m.theta_e - ell * m.w_e * m.ts))
-            for ell in range(m.horizon)]  # fmt: skip
 
     def expand(node: tuple[complex, int, int]) -> list[tuple[float, int, Any]]:
         psi, ell, code = node
@@ -361,6 +427,9 @@ class PMSMControllerParams:
     )
     lambda_sw: float = lambda_sw_field("p.u. (eq 5's cost is normalised)")
     horizon: int = horizon_field("mptc", MAX_HORIZON)
+    node_budget: int = budget_field("stage costs", NODE_BUDGET)
+    search: str = search_field("mptc's branch and bound over a horizon")
+    prediction: str = prediction_field()
     delay_compensation: bool = delay_compensation()
     #: the controller's own flux map (docs/physics.md#saturation): with a model, it predicts
     #: with the map's apparent inductances at the measured current; none: its linear ``motor``
@@ -391,16 +460,21 @@ class PMSMController(VectorController):
         )
         fm = flux_map_of(params.motor, params.saturation)
         self._apparent = None if fm is None else ApparentModel(fm, self._pred.c)
+        self._pred.rotor_motion = params.prediction == "rotor_motion"
+        self._pred.budget = params.node_budget
+        self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
         super().__init__(params, ts=ts)
 
     def _predict(self, state: State, u_ab: complex) -> State:
-        return pmsm_predicted(self._pred.c, self.ts, state, u_ab)
+        p = self._pred
+        return pmsm_predicted(p.c, self.ts, state, u_ab, rotor_motion=p.rotor_motion)
 
     def _observe(self, state: State) -> None:
         m = self._pred
         if self._apparent is not None:  # the map's model at this current
             m.use(self._apparent.at(state.i_alpha, state.i_beta, state.theta_e))
-        m.prepare(state.i_alpha, state.i_beta, state.theta_e, state.u_dc)
+        w_e = m.c.p * state.omega_m
+        m.prepare(state.i_alpha, state.i_beta, state.theta_e, state.u_dc, w_e)
         self.est_torque = m.te
         self.est_flux = m.psi
         self.est_flux_angle = m.theta_psi
@@ -421,6 +495,7 @@ class PMSMController(VectorController):
         out = []
         for s in states:
             m = PMSMPrediction(p.c, p.ts, p.threshold, p.t_floor)
-            m.prepare(s.i_alpha, s.i_beta, s.theta_e, s.u_dc)
+            m.rotor_motion = p.rotor_motion
+            m.prepare(s.i_alpha, s.i_beta, s.theta_e, s.u_dc, p.c.p * s.omega_m)
             out.append(m)
         return out

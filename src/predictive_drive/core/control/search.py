@@ -14,6 +14,10 @@ keeps its solvers apart from its controllers.
   optimum).
 - :func:`exhaustive` — every sequence: the reference both are tested against.
 
+**A budget** bounds the worst case, as real-time implementations do: with ``budget`` > 0 a
+search stops once it has evaluated that many nodes and holds a complete sequence, and returns
+the best one found so far, ``complete`` False (docs/physics.md#a-budget-per-step). 0: none.
+
 **Ties** are broken by one rule everywhere: among sequences of equal cost the lexicographically
 smallest wins (inputs compared level by level, as ``tuple`` compares), the first strict minimum
 of an enumeration in lexicographic order. Costs are summed stage by stage in order, so every
@@ -44,12 +48,14 @@ Expand = Callable[[Any], Sequence[tuple[float, int, Any]]]
 
 
 class SearchResult(NamedTuple):
-    """The best sequence, its cost, and how many nodes the search evaluated (stage costs for
-    :func:`branch_and_bound` and :func:`exhaustive`, tree nodes for :func:`sphere_decode`)."""
+    """The best sequence, its cost, how many nodes the search evaluated (stage costs for
+    :func:`branch_and_bound` and :func:`exhaustive`, tree nodes for :func:`sphere_decode`),
+    and whether it finished (False: its budget ran out; the sequence is the best found)."""
 
     sequence: tuple[int, ...]
     cost: float
     nodes: int
+    complete: bool = True
 
 
 def sequence_cost(expand: Expand, root: Any, sequence: Sequence[int]) -> tuple[float, int]:
@@ -90,18 +96,23 @@ def exhaustive(expand: Expand, root: Any, horizon: int) -> SearchResult:
 
 
 def branch_and_bound(
-    expand: Expand, root: Any, horizon: int, guess: Sequence[int] = ()
+    expand: Expand, root: Any, horizon: int, guess: Sequence[int] = (), budget: int = 0
 ) -> SearchResult:
     """The optimal sequence of ``horizon`` inputs from ``root``; ``guess`` (a sequence of that
     length, e.g. the last optimum shifted) gives the first upper bound. Exact for stage costs
     that are never negative: a branch is cut only when its partial cost already exceeds a
-    complete sequence's, and equal costs go on to the tie rule (module text)."""
+    complete sequence's, and equal costs go on to the tie rule (module text). ``budget``: see
+    the module text."""
     best_cost, nodes = (INF, 0) if len(guess) != horizon else sequence_cost(expand, root, guess)
     best_seq: tuple[int, ...] = tuple(guess) if best_cost < INF else ()
     last = horizon - 1
+    stopped = False
 
     def walk(node: Any, level: int, acc: float, prefix: tuple[int, ...]) -> None:
-        nonlocal best_cost, best_seq, nodes
+        nonlocal best_cost, best_seq, nodes, stopped
+        if stopped or (budget and nodes >= budget and best_seq):
+            stopped = True
+            return
         children = sorted(expand(node), key=lambda c: (c[0], c[1]))
         nodes += len(children)
         for cost, u, child in children:
@@ -114,9 +125,11 @@ def branch_and_bound(
                     best_cost, best_seq = total, seq
             else:
                 walk(child, level + 1, total, seq)
+                if stopped:
+                    return
 
     walk(root, 0, 0.0, ())
-    return SearchResult(best_seq, best_cost, nodes)
+    return SearchResult(best_seq, best_cost, nodes, not stopped)
 
 
 def sphere_decode(
@@ -124,13 +137,15 @@ def sphere_decode(
     ubar: Sequence[float],
     guess: Sequence[int] = (),
     levels: Sequence[int] = (0, 1),
+    budget: int = 0,
 ) -> SearchResult:
     """min ‖ū - V·U‖² over U with every component in ``levels``, V (n × n) upper triangular
     (row r holds columns r..n-1): the optimal U, its squared distance and the tree nodes
     visited. The first radius is the distance of ``guess`` (none: unbounded until the first
     leaf). Components are fixed from the last (row n-1 involves U[n-1] alone) to the first,
     the values at each level tried nearest first to the point that minimises that row's term
-    (Schnorr-Euchner order), so the first leaf is Babai's rounding and good leaves come early."""
+    (Schnorr-Euchner order), so the first leaf is Babai's rounding and good leaves come early.
+    ``budget``: see the module text."""
     n = len(ubar)
     rows = [list(map(float, r)) for r in v]
     target = list(map(float, ubar))
@@ -141,17 +156,21 @@ def sphere_decode(
         best = tuple(guess)
     nodes = 0
     u = [0] * n
+    stopped = False
 
     def walk(r: int, partial: float, offset: list[float]) -> None:
         """Fix U[r]; ``offset[q]`` = Σ_{c>r} V[q][c]·U[c] for the rows q <= r, added from the
         last column down (the order :func:`_distance` adds in)."""
-        nonlocal radius, best, nodes
+        nonlocal radius, best, nodes, stopped
         row = rows[r]
         diag = row[r]
         centre = target[r] - offset[r]
         # the level's values, nearest first to centre / diag (ties: the smaller value)
         order = sorted(levels, key=lambda x: (abs(centre - diag * x), x))
         for x in order:
+            if stopped or (budget and nodes >= budget and best):
+                stopped = True
+                return
             nodes += 1
             e = centre - diag * x
             d = partial + e * e
@@ -166,7 +185,7 @@ def sphere_decode(
             walk(r - 1, d, [offset[q] + rows[q][r] * x for q in range(r)])
 
     walk(n - 1, 0.0, [0.0] * n)
-    return SearchResult(best, radius, nodes)
+    return SearchResult(best, radius, nodes, not stopped)
 
 
 def _distance(rows: list[list[float]], target: list[float], u: Sequence[int]) -> float:

@@ -10,15 +10,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import NamedTuple
+
+import numpy as np
 
 from ..fields import check_fields, quantity
 
 __all__ = [
+    "pmsm_exact_step",
     "pmsm_predict_current",
     "PMSM",
     "PMSM_STATE",
     "PMSMCoefficients",
+    "PMSMStep",
     "pmsm_dynamics",
     "pmsm_rk4",
     "pmsm_torque",
@@ -178,20 +183,80 @@ def pmsm_rk4(
     return complex(i_d, i_q), w, th
 
 
+class PMSMStep(NamedTuple):
+    """One period of the PMSM's stator currents at a constant electrical speed, solved exactly
+    (docs/physics.md#predicting-the-pmsm-over-a-period): i(k+1) = A·i(k) + G·u(k) + f, in the rotor
+    frame, with u(k) = u_αβ·e^{-jθ_e(k)} the period's voltage seen from the rotor at the
+    period's start (the voltage stays put in αβ; the rotor turns under it)."""
+
+    a11: float
+    a12: float
+    a21: float
+    a22: float
+    g11: float  #: A/V
+    g12: float
+    g21: float
+    g22: float
+    f_d: float  #: A
+    f_q: float
+
+
+@lru_cache(maxsize=16)
+def pmsm_exact_step(c: PMSMCoefficients, ts: float, w_e: float) -> PMSMStep:
+    """:class:`PMSMStep` over ``ts`` (s) at electrical speed ``w_e`` (rad/s): the exponential of
+    the linear model's matrix with the voltage's rotation in the rotor frame as two more states
+    (du_dq/dt = -jω_e·u_dq) and a constant one, by scaling and squaring of its Taylor series —
+    exact to rounding for :func:`pmsm_dynamics`' currents at that speed. Cached: a drive held at
+    one speed computes it once."""
+    rs, ld, lq = c.r_s, c.l_d, c.l_q
+    m = np.zeros((5, 5))
+    m[0, :4] = (-rs / ld, w_e * lq / ld, 1.0 / ld, 0.0)
+    m[1, :] = (-w_e * ld / lq, -rs / lq, 0.0, 1.0 / lq, -w_e * c.psi_f / lq)
+    m[2, 3], m[3, 2] = w_e, -w_e
+    x = m * ts
+    squarings = max(0, math.ceil(math.log2(max(float(np.abs(x).sum(0).max()), 1e-300) / 0.25)))
+    x /= 2.0**squarings
+    e, term = np.eye(5), np.eye(5)
+    for k in range(1, 16):  # ‖x‖ ≤ 1/4: 4^-16/16! is far below rounding
+        term = term @ x / k
+        e += term
+    for _ in range(squarings):
+        e = e @ e
+    a, g, f = e[:2, :2].ravel().tolist(), e[:2, 2:4].ravel().tolist(), e[:2, 4].tolist()
+    return PMSMStep(a[0], a[1], a[2], a[3], g[0], g[1], g[2], g[3], f[0], f[1])
+
+
 def pmsm_predict_current(
-    c: PMSMCoefficients, ts: float, i_ab: complex, theta_e: float, omega_m: float, u_ab: complex
+    c: PMSMCoefficients,
+    ts: float,
+    i_ab: complex,
+    theta_e: float,
+    omega_m: float,
+    u_ab: complex,
+    *,
+    exact: PMSMStep | None = None,
 ) -> tuple[complex, float]:
     """(i_αβ, θ_e) one period ahead with the voltage ``u_ab`` (V, αβ) applied over it, by forward
     Euler of the model's dq equations at constant speed, the voltage turned into dq at the
-    period's middle angle (the controllers' delay compensation)."""
+    period's middle angle (the controllers' delay compensation); or, given ``exact``
+    (:func:`pmsm_exact_step` at this speed), the period solved exactly."""
     w_e = c.p * omega_m
     rot = complex(math.cos(theta_e), -math.sin(theta_e))
     i = i_ab * rot
+    theta1 = theta_e + w_e * ts
+    if exact is not None:
+        u = u_ab * rot
+        x = exact
+        i_d, i_q, u_d, u_q = i.real, i.imag, u.real, u.imag
+        i1 = complex(
+            x.a11 * i_d + x.a12 * i_q + x.g11 * u_d + x.g12 * u_q + x.f_d,
+            x.a21 * i_d + x.a22 * i_q + x.g21 * u_d + x.g22 * u_q + x.f_q,
+        )
+        return i1 * complex(math.cos(theta1), math.sin(theta1)), theta1
     mid = theta_e + 0.5 * w_e * ts
     u = u_ab * complex(math.cos(mid), -math.sin(mid))
     i_d, i_q = i.real, i.imag
     d_d = (u.real - c.r_s * i_d + w_e * c.l_q * i_q) * c.inv_l_d
     d_q = (u.imag - c.r_s * i_q - w_e * (c.l_d * i_d + c.psi_f)) * c.inv_l_q
-    theta1 = theta_e + w_e * ts
     i1 = complex(i_d + ts * d_d, i_q + ts * d_q)
     return i1 * complex(math.cos(theta1), math.sin(theta1)), theta1
