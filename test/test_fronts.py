@@ -432,3 +432,27 @@ def test_your_controller_is_drawn_on_a_front_through_the_ros_graph(tmp_path):
     (figure,) = d.figures
     assert figure.stat().st_size > 20_000
     assert bags and not any(Path(b).exists() for b in bags)  # recorded where needed, removed
+
+
+@pytest.mark.core
+def test_a_figure_with_nothing_for_its_log_axes_says_so(tmp_path):
+    """A study too short to hold its current's cycles (--duration 0.02) has no THD to draw:
+    the panel says so, the figure is drawn (was: a matplotlib traceback, 'Data cannot be
+    log-scaled', exit 1, no table); a point with nothing in any panel is not drawn and a note
+    names it."""
+    from predictive_drive.api.fronts import FrontsChoice
+    from predictive_drive.reports.figures import fronts_figures
+
+    choice = FrontsChoice(points=["im_steady"], curves=["mptc", "ifoc"], periods_us=[],
+                          lambda_sw=[0.0], fsw_khz=[2.0, 5.0])  # fmt: skip
+    d = reproduce("fronts", duration=0.02, figures=tmp_path, fronts=choice)
+    assert [p.name for p in d.figures] == ["fronts_im_steady.png"] and not d.figure_notes
+    for c in d.points[0].curves:
+        for p in c.points:
+            p.figures.update(dict.fromkeys(p.figures, math.nan))
+    notes: list[str] = []
+    assert fronts_figures(d, notes) == {}
+    assert notes == [
+        "im_steady: no figure drawn: no run has a positive f_sw and figure to put on log axes "
+        "(a run too short to switch?)"
+    ]

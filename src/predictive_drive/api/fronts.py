@@ -163,10 +163,13 @@ class FrontsResult(Reproduction):
     runs: int
     wall_s: float
     figures: list[Path] = field(default_factory=list)
+    #: figures not drawn, and why (nothing to put on their log axes)
+    figure_notes: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             **self.head(),
+            "figure_notes": self.figure_notes,
             "frequencies_hz": list(self.frequencies),
             "tolerance": self.tolerance,
             "runs": self.runs,
@@ -522,8 +525,9 @@ def reproduce_fronts(
         return out
     from ..reports.figures import fronts_figures, save
 
-    drawn = save(fronts_figures(out), figures, prefix="fronts_")
-    return dataclasses.replace(out, figures=drawn)
+    notes: list[str] = []
+    drawn = save(fronts_figures(out, notes), figures, prefix="fronts_")
+    return dataclasses.replace(out, figures=drawn, figure_notes=notes)
 
 
 _MISSED = {"torque": "mean torque", "flux": "mean |psi_s|", "current": "current's fundamental"}

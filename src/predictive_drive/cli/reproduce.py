@@ -266,6 +266,8 @@ def main(a: argparse.Namespace) -> int:
         print_table(d)
     for f in d.figures:
         print(f"figure {f}")
+    for note in getattr(d, "figure_notes", []):
+        print(f"figure {note}")
     if d.bags is not None:
         print(f"bags   {d.bags.count} in {d.bags.folder} ({d.bags.bytes / 1e6:.1f} MB)")
     return 0

@@ -390,14 +390,16 @@ CURVE_COLOURS = (
 CURVE_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h", "p", "d", "8", "H", "+")
 
 
-def fronts_figures(result: Any) -> dict[str, Any]:
+def fronts_figures(result: Any, skipped: list[str] | None = None) -> dict[str, Any]:
     """One figure per operating point of a fronts study (``result.points``, each with
     ``point``, ``caption`` and ``curves`` of ``points``): a panel per ranked figure (the
     torque's ripple about its mean and against T*, the current's THD and TDD) against f_sw, log
     axes; per curve, in its own colour and marker, its points (hollow where the run left the
     operating point) and its front as a line (dashed for field-oriented control) drawn only
     between the neighbours the table reads between (:func:`~.fronts.joined`): no line
-    across a gap it leaves blank."""
+    across a gap it leaves blank. A panel with no positive figure says so instead of a log
+    axis (matplotlib cannot scale one), and a figure with nothing in any panel is not drawn:
+    ``skipped`` takes a note naming it."""
     from .fronts import joined
 
     plt = _pyplot()
@@ -405,9 +407,22 @@ def fronts_figures(result: Any) -> dict[str, Any]:
     f_sw = METRICS["f_sw_hz"]
     keys = tuple(result.points[0].at) if result.points else ()
     for table in result.points:
+        drawable = {k: _positive(table, k) for k in keys}
+        if not any(drawable.values()):
+            if skipped is not None:
+                skipped.append(
+                    f"{table.point}: no figure drawn: no run has a positive f_sw and figure to "
+                    "put on log axes (a run too short to switch?)"
+                )
+            continue
         fig, axes = plt.subplots(2, (len(keys) + 1) // 2, figsize=(12, 8.5), squeeze=False)
         for ax, key in zip(axes.flat, keys):
             shown = METRICS[key]
+            if not drawable[key]:
+                ax.text(0.5, 0.5, f"{shown.title}: no run has a positive figure",
+                        ha="center", va="center", transform=ax.transAxes, fontsize=8)  # fmt: skip
+                ax.set(xlabel=f_sw.axis, ylabel=shown.axis)
+                continue
             for i, curve in enumerate(table.curves):
                 style = {
                     "color": CURVE_COLOURS[i % len(CURVE_COLOURS)],
@@ -449,6 +464,16 @@ def fronts_figures(result: Any) -> dict[str, Any]:
         fig.tight_layout()
         figs[table.point] = fig
     return figs
+
+
+def _positive(table: Any, key: str) -> bool:
+    """Some run of a fronts table has a positive f_sw and a positive, finite ``key``: a log axis
+    has something to scale."""
+    return any(
+        math.isfinite(p.figures[key]) and p.figures[key] > 0 and p.figures["f_sw_hz"] > 0
+        for c in table.curves
+        for p in c.points
+    )
 
 
 def save(figs: dict[str, Any], directory: str | Path, prefix: str = "") -> list[Path]:
