@@ -127,8 +127,8 @@ def test_both_pmsm_fcs_families_take_the_prediction(scenario):
     assert load_scenario(scenario).controller.prediction == "frozen_rotor"
     motion = _scenario(scenario, {"torque_controller.prediction": "rotor_motion"})
     assert motion.controller.prediction == "rotor_motion"
-    frozen = run_inprocess(load_scenario(scenario), steps=300)
-    moved = run_inprocess(motion, steps=300)
+    frozen = run_inprocess(load_scenario(scenario), steps=1000)
+    moved = run_inprocess(motion, steps=1000)
     assert not np.array_equal(frozen.col("command", "duty_a"), moved.col("command", "duty_a"))
     with pytest.raises(ConfigError, match="frozen_rotor, rotor_motion"):
         _scenario(scenario, {"torque_controller.prediction": "moving"})

@@ -199,9 +199,11 @@ def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recordi
     got = np.array([(t, CODECS["state"].decode(d)[1]) for t, d in listener.got["/drive/state"]])
     received_rate = float(np.polyfit(got[:, 0], got[:, 1], 1)[0])
     arrivals = [t for topic in PLAYED for t, _ in listener.got[topic]]
-    # never faster; the first message can arrive late while the rest keep the player's clock
-    # (at rate 0.1 a loaded run read 0.474 s for the 0.4995 s asked: 0.95 of it failed)
-    assert max(arrivals) - min(arrivals) >= 0.9 * 0.05 * 999 / 1000 / rate
+    # never faster; the first messages can arrive late while the rest keep the player's clock
+    # (at rate 0.1 loaded runs read 0.474 and 0.439 s first to last for the 0.4995 s asked), so
+    # the span between the arrivals' 10th and 90th percentiles, 0.8 of the whole when paced
+    lo, hi = np.quantile(arrivals, [0.1, 0.9])
+    assert hi - lo >= 0.9 * 0.8 * 0.05 * 999 / 1000 / rate
     assert received_rate <= rate * 1.05, received_rate
     if rate < 1:  # a pace the player and the subscriber keep (at 0.25 the 15,000 messages/s
         # made this test process's own subscriber lag on a busy machine): it says the rate seen
