@@ -750,7 +750,7 @@ def test_bench_times_your_controller_beside_ours(capsys):
     the same call as the graph with ours (was: only the example, by its key); a command that
     cannot start is refused first."""
     r = subprocess.run(
-        [*CLI, "bench", "--quick", "--no-horizons", "--json", "--label", "dtc",
+        [*CLI, "bench", "--quick", "--no-horizons", "--no-losses", "--json", "--label", "dtc",
          "--external", f"torque_controller={DTC}"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
