@@ -777,7 +777,7 @@ def test_losses_and_temperatures_through_the_graph_equal_inprocess(tmp_path):
     bit; the bag stores the file it read (docs/physics.md#losses-and-temperature)."""
     settings = {
         "plant.dead_time": 1e-6,
-        "plant.losses.device": "fuji_2mbi100xaa120_50",
+        "plant.losses.device": "semikron_skm150gb124d",
         "plant.losses.machine": True,
         "plant.losses.iron_eddy": 0.01,
     }
@@ -788,7 +788,7 @@ def test_losses_and_temperatures_through_the_graph_equal_inprocess(tmp_path):
     assert info.complete and a.steps == b.steps == 1000
     assert_same_run(a, b)
     assert np.isfinite(a.col("state", "tj_ta_hi")).all() and a.col("state", "p_sw_t").any()
-    assert '"2MBI100XAA120-50"' in info.info["device_json"]
+    assert '"SKM 150 GB 124 D"' in info.info["device_json"]
 
 
 def test_field_orientation_at_a_held_point_through_the_graph_equals_inprocess(tmp_path):

@@ -73,14 +73,14 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     runs = {}
     for engine in ("inprocess", "composed", "ros"):
         # the node processes with losses on: the device file comes from the install's share
-        losses = ["--set", "plant.losses.device=fuji_2mbi100xaa120_50"] if engine == "ros" else []
+        losses = ["--set", "plant.losses.device=semikron_skm150gb124d"] if engine == "ros" else []
         out = ok_json(install, work, "run", "im_short", "--engine", engine, "--duration", "0.1",
                       "--out", f"bags/{engine}", *losses)  # fmt: skip
         assert out["steps"] == 2000 and out["engine"] == engine
         assert 0 < out["metrics"]["t_rmse"] < 10
         runs[engine] = out
     assert (work / "bags" / "ros" / "logs" / "plant.log").is_file()
-    assert runs["ros"]["metrics"]["p_inverter"] > 0 and runs["ros"]["device"] == "2MBI100XAA120-50"
+    assert runs["ros"]["metrics"]["p_inverter"] > 0 and runs["ros"]["device"] == "SKM 150 GB 124 D"
 
     # report, with the figures (matplotlib from the `figures` extra)
     rep = ok_json(install, work, "report", "bags/ros", "--figures", "figures")

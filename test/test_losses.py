@@ -16,7 +16,7 @@ from predictive_drive.core.metrics import compute_metrics, whole_cycles
 from predictive_drive.core.runner import build, run_inprocess
 from predictive_drive.core.signals import DEVICES, LOSS_FIELDS, State
 from predictive_drive.core.thermal import COPPER_ALPHA, resistance_at
-from test_devices import FUJI, LINEAR, WOLFSPEED, scenario
+from test_devices import IGBT_MODULE, LINEAR, SIC_MOSFET, scenario
 
 pytestmark = pytest.mark.core
 
@@ -26,12 +26,12 @@ pytestmark = pytest.mark.core
 #: every family on a real drive with losses: IM and PMSM, MPTC, FOC and direct MPC, free shafts
 #: and held ones, dead time, device files, machine losses with iron losses
 FAMILIES = [
-    ("im_short", "db_mptc", FUJI, 0.1),
-    ("im_steady_foc", "ifoc", FUJI, 0.1),
-    ("ipmsm_short", "mptc", WOLFSPEED, 0.1),
-    ("ipmsm_steady_foc", "foc_formula", WOLFSPEED, 0.08),
-    ("ipmsm_steady_mpc", "direct_mpc", WOLFSPEED, 0.05),
-    ("hs_ipmsm_mtpa_short", "foc_injection", WOLFSPEED, 0.3),
+    ("im_short", "db_mptc", IGBT_MODULE, 0.1),
+    ("im_steady_foc", "ifoc", IGBT_MODULE, 0.1),
+    ("ipmsm_short", "mptc", SIC_MOSFET, 0.1),
+    ("ipmsm_steady_foc", "foc_formula", SIC_MOSFET, 0.08),
+    ("ipmsm_steady_mpc", "direct_mpc", SIC_MOSFET, 0.05),
+    ("hs_ipmsm_mtpa_short", "foc_injection", SIC_MOSFET, 0.3),
 ]
 
 
@@ -159,7 +159,7 @@ def test_junction_and_winding_temperatures_set_the_devices_and_the_plants_parame
     """Every thermal step the devices' lines follow their T_j and the plant's R_s and ψ_f its
     winding and rotor temperatures; the controller keeps its nominal model."""
     settings = {
-        "plant.losses.device": WOLFSPEED,
+        "plant.losses.device": SIC_MOSFET,
         "plant.losses.machine": True,
         "plant.losses.winding_tau": 0.02,
         "plant.losses.rotor_tau": 0.02,
@@ -194,7 +194,7 @@ def test_a_run_without_losses_has_no_loss_figures_and_one_with_them_reads_them_b
 
     plain = compute_metrics(run_inprocess(scenario("ipmsm_short", {}), steps=400))
     assert math.isnan(plain.p_in) and plain.tj_max_device == ""
-    settings = {"plant.losses.device": WOLFSPEED, "plant.losses.machine": True}
+    settings = {"plant.losses.device": SIC_MOSFET, "plant.losses.machine": True}
     sc = scenario("ipmsm_short", settings).with_duration(0.05)
     run_inprocess_to_bag(sc, tmp_path / "bag")
     r = report(tmp_path / "bag")
@@ -207,7 +207,7 @@ def test_a_run_without_losses_has_no_loss_figures_and_one_with_them_reads_them_b
     assert r.metrics.tj_max == pytest.approx(float(tj.max()))
     assert r.metrics.tj_max_device == DEVICES[int(np.argmax(tj.max(axis=1)))]
     assert 0.0 < r.metrics.efficiency < 1.0 or math.isnan(r.metrics.efficiency)
-    assert r.details.device == "C3M0060065J" and r.details.rated_tj == (175.0, 175.0)
+    assert r.details.device == "C3M0065100J" and r.details.rated_tj == (150.0, 150.0)
     from predictive_drive.core.metrics import METRICS
 
     for m in (plain, r.metrics):  # every declared figure formats, a sweep's or a table's
@@ -233,7 +233,7 @@ def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_pa
     from predictive_drive.core.losses import overheats
 
     settings = {
-        "plant.losses.device": WOLFSPEED,
+        "plant.losses.device": SIC_MOSFET,
         "plant.losses.mounting_r_th": 30.0,  # a device hung in the air
         "plant.losses.thermal_step": 5e-5,
     }
@@ -244,14 +244,14 @@ def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_pa
     first = over[0]
     tj = tr.col("state", f"tj_{first.device}")
     k = round(first.t_first / sc.ts)
-    assert tj[k] > 175.0 >= np.max(tj[:k]) and first.tj_max == pytest.approx(np.max(tj))
+    assert tj[k] > 150.0 >= np.max(tj[:k]) and first.tj_max == pytest.approx(np.max(tj))
 
 
 def test_the_losses_figure_draws_the_recorded_losses_and_temperatures():
     pytest.importorskip("matplotlib")
     from predictive_drive.reports.figures import Run, run_figures
 
-    settings = {"plant.losses.device": FUJI, "plant.losses.machine": True}
+    settings = {"plant.losses.device": IGBT_MODULE, "plant.losses.machine": True}
     sc = scenario("im_short", settings, "db_mptc")
     tr = run_inprocess(sc, steps=1000)
     fig = run_figures(Run(tr, sc, "im_short"))["losses"]
@@ -304,7 +304,7 @@ def test_report_prints_the_losses_efficiency_and_a_device_above_its_rating(tmp_p
     from predictive_drive.cli.common import print_recording
 
     settings = {
-        "plant.losses.device": WOLFSPEED,
+        "plant.losses.device": SIC_MOSFET,
         "plant.losses.machine": True,
         "plant.losses.mounting_r_th": 30.0,  # a device hung in the air: it runs hot
         "plant.losses.thermal_step": 5e-5,
@@ -316,6 +316,6 @@ def test_report_prints_the_losses_efficiency_and_a_device_above_its_rating(tmp_p
     m = r.metrics
     assert f"T {m.p_cond_t:.3g} W  D {m.p_cond_d:.3g} W" in out
     assert f"{100 * m.efficiency:.2f} %" in out and "into the load of" in out
-    assert f"{m.tj_max:.1f} °C" in out and f"{m.tj_max_device} at" in out and "(rated 175" in out
+    assert f"{m.tj_max:.1f} °C" in out and f"{m.tj_max_device} at" in out and "(rated 150" in out
     (o, *_) = r.details.overheats
-    assert f"{'OVER T_j':<11}{o.device:>16}   above its rated 175 °C from {o.t_first:.4g} s" in out
+    assert f"{'OVER T_j':<11}{o.device:>16}   above its rated 150 °C from {o.t_first:.4g} s" in out

@@ -220,7 +220,7 @@ def horizon_rate(
 LOSS_DRIVE: dict[str, Any] = {"plant.dead_time": 2e-6, "plant.device_drop": 1.5}
 LOSSES_ON: dict[str, Any] = {
     "plant.dead_time": 2e-6,
-    "plant.losses.device": "fuji_2mbi100xaa120_50",
+    "plant.losses.device": "semikron_skm150gb124d",
     "plant.losses.machine": True,
     "plant.losses.iron_hysteresis": 1.0,
     "plant.losses.iron_eddy": 0.01,
