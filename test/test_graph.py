@@ -67,9 +67,10 @@ def cli_run(tmp_path):
 
 
 def assert_same_run(a, b) -> None:
-    """Two traces hold the same state, reference and command sequences bit for bit (the measured
-    compute_ns aside)."""
+    """Two traces hold the same state, reference and command sequences (and losses) bit for bit
+    (the measured compute_ns aside)."""
     np.testing.assert_array_equal(a.state, b.state)
+    np.testing.assert_array_equal(a.losses, b.losses)
     np.testing.assert_array_equal(a.reference, b.reference)
     np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
 
@@ -787,7 +788,8 @@ def test_losses_and_temperatures_through_the_graph_equal_inprocess(tmp_path):
     b, _ = read_bag(i.bag)
     assert info.complete and a.steps == b.steps == 1000
     assert_same_run(a, b)
-    assert np.isfinite(a.col("state", "tj_ta_hi")).all() and a.col("state", "p_sw_t").any()
+    assert len(a.losses) == len(a.state) == 1001 and info.counts["/drive/losses"] == 1001
+    assert np.isfinite(a.col("losses", "tj_ta_hi")).all() and a.col("losses", "p_sw_t").any()
     assert '"SKM 150 GB 124 D"' in info.info["device_json"]
 
 

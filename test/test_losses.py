@@ -14,9 +14,11 @@ from predictive_drive.core.devices import Device, Line, Part, load_device
 from predictive_drive.core.losses import LossParams
 from predictive_drive.core.metrics import compute_metrics, whole_cycles
 from predictive_drive.core.runner import build, run_inprocess
-from predictive_drive.core.signals import DEVICES, LOSS_FIELDS, State
+from predictive_drive.core.signals import DEVICES, LOSS_FIELDS, Losses, State
 from predictive_drive.core.thermal import COPPER_ALPHA, resistance_at
 from test_devices import IGBT_MODULE, LINEAR, SIC_MOSFET, scenario
+
+LOSSES_FIELDS = Losses._fields
 
 pytestmark = pytest.mark.core
 
@@ -68,7 +70,7 @@ def test_the_energy_drawn_from_the_dc_link_is_every_loss_work_and_stored_energy(
     }
     sc = scenario(name, settings, strategy)
     tr = run_inprocess(sc, steps=round(duration / sc.ts))
-    energy = {f: float(np.sum(tr.col("state", f)[1:])) * sc.ts for f in LOSS_FIELDS[:9]}
+    energy = {f: float(np.sum(tr.col("losses", f)[1:])) * sc.ts for f in LOSS_FIELDS[:9]}
     m = sc.plant.motor
     w = tr.truth("omega_m")
     kinetic = 0.0 if sc.plant.held else 0.5 * m.j * (w[-1] ** 2 - w[0] ** 2)
@@ -77,11 +79,11 @@ def test_the_energy_drawn_from_the_dc_link_is_every_loss_work_and_stored_energy(
         energy["p_shaft"] + energy["p_friction"] + energy["p_copper"] + energy["p_cond_t"]
         + energy["p_cond_d"] + kinetic + magnetic[-1] - magnetic[0]
     )  # fmt: skip
-    drawn = float(np.sum(np.abs(tr.col("state", "p_dc")[1:]))) * sc.ts
+    drawn = float(np.sum(np.abs(tr.col("losses", "p_dc")[1:]))) * sc.ts
     assert abs(energy["p_dc"] - spent) < 1e-3 * drawn, (energy, kinetic, magnetic[-1])
     assert energy["p_copper"] > 0 and energy["p_cond_t"] > 0 and energy["p_sw_t"] > 0
     assert energy["p_iron"] > 0
-    assert tr.col("state", "t_winding")[-1] > sc.plant.losses.coolant + 0.5
+    assert tr.col("losses", "t_winding")[-1] > sc.plant.losses.coolant + 0.5
 
 
 def _linear_device() -> Device:
@@ -131,7 +133,7 @@ def test_svpwm_losses_agree_with_the_closed_form_average_losses(torque, rpm):
     }  # fmt: skip
     periods = slice(w.k0 + 1, w.k0 + w.n + 1)
     for field, value in expected.items():
-        per_device = float(np.mean(tr.col("state", field)[periods])) / 6
+        per_device = float(np.mean(tr.col("losses", field)[periods])) / 6
         assert per_device == pytest.approx(value, rel=0.03), field
 
 
@@ -148,11 +150,10 @@ def test_a_device_of_constant_on_state_voltage_is_the_plants_device_drop_bit_for
         sc, plant=dataclasses.replace(sc.plant, losses=LossParams(device="flat")), device=device
     )
     booked = run_inprocess(sc, steps=2000)
-    n = State._fields.index(LOSS_FIELDS[0])
-    assert np.array_equal(dropped.state[:, :n], booked.state[:, :n], equal_nan=True)
+    assert np.array_equal(dropped.state, booked.state, equal_nan=True)
     assert np.array_equal(dropped.command[:, :-1], booked.command[:, :-1], equal_nan=True)
-    assert np.isnan(dropped.state[:, n:]).all()
-    assert np.isfinite(booked.col("state", "p_cond_d")[1:]).all()
+    assert not dropped.has_losses and len(booked.losses) == len(booked.state)
+    assert np.isfinite(booked.col("losses", "p_cond_d")[1:]).all()
 
 
 def test_junction_and_winding_temperatures_set_the_devices_and_the_plants_parameters():
@@ -176,8 +177,8 @@ def test_junction_and_winding_temperatures_set_the_devices_and_the_plants_parame
         ref = c.speed_pi.step(state)
         state = c.plant.step(cmd)
     p, m, d = c.plant, sc.plant.motor, sc.device
-    s = dict(zip(type(state)._fields, state))
-    assert s["t_winding"] > 60.0 and s["t_rotor"] > 45.0
+    s = p.losses()._asdict()
+    assert s["k"] == state.k and s["t_winding"] > 60.0 and s["t_rotor"] > 45.0
     t_ref = sc.plant.losses.motor_temperature
     assert p._coef.r_s == pytest.approx(resistance_at(m.r_s, s["t_winding"], t_ref, COPPER_ALPHA))
     assert p._coef.psi_f == pytest.approx(m.psi_f * (1 - 0.0011 * (s["t_rotor"] - t_ref)))
@@ -201,9 +202,9 @@ def test_a_run_without_losses_has_no_loss_figures_and_one_with_them_reads_them_b
     tr = run_inprocess(sc)
     k0, k1 = round(r.metrics.t_start / sc.ts), round(r.metrics.t_end / sc.ts)
     periods = slice(k0 + 1, k1 + 1)
-    inverter = sum(float(np.mean(tr.col("state", f)[periods])) for f in LOSS_FIELDS[5:9])
+    inverter = sum(float(np.mean(tr.col("losses", f)[periods])) for f in LOSS_FIELDS[5:9])
     assert r.metrics.p_inverter == pytest.approx(inverter, rel=1e-12)
-    tj = np.array([tr.col("state", f"tj_{n}")[k0:k1] for n in DEVICES])
+    tj = np.array([tr.col("losses", f"tj_{n}")[k0:k1] for n in DEVICES])
     assert r.metrics.tj_max == pytest.approx(float(tj.max()))
     assert r.metrics.tj_max_device == DEVICES[int(np.argmax(tj.max(axis=1)))]
     assert 0.0 < r.metrics.efficiency < 1.0 or math.isnan(r.metrics.efficiency)
@@ -214,19 +215,53 @@ def test_a_run_without_losses_has_no_loss_figures_and_one_with_them_reads_them_b
         scalars = {k: v for k, v in m.as_dict().items() if isinstance(v, (int, float, str))}
         shown = {k: METRICS[k].with_unit(v) for k, v in scalars.items()}
         assert shown["tj_max_device"] == (r.metrics.tj_max_device if m is r.metrics else "-")
-    # an independent reader sees them as fields of /drive/state, by label
+    # an independent reader sees them on /drive/losses, one message a step, by label; the
+    # state is as without losses, and a run without them has no such topic
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    rows = []
-    with AnyReader([tmp_path / "bag"], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as rd:
-        conns = [c for c in rd.connections if c.topic == "/drive/state"]
-        for conn, _, raw in rd.messages(connections=conns):
-            msg = rd.deserialize(raw, conn.msgtype)
-            rows.append(dict(zip(msg.layout.dim[0].label.split(","), msg.data)))
-    assert len(rows) == len(tr.state)
-    for field in ("p_dc", "p_sw_t", "tj_ta_hi", "t_sink", "t_winding"):
-        assert [row[field] for row in rows] == tr.col("state", field).tolist()
+    run_inprocess_to_bag(scenario("ipmsm_short", {}).with_duration(0.005), tmp_path / "plain")
+    rows: dict[str, list[dict[str, float]]] = {}
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for bag in ("bag", "plain"):
+        with AnyReader([tmp_path / bag], default_typestore=store) as rd:
+            topics = {c.topic for c in rd.connections}
+            assert ("/drive/losses" in topics) == (bag == "bag"), topics
+            conns = [c for c in rd.connections if c.topic in ("/drive/losses", "/drive/state")]
+            for conn, _, raw in rd.messages(connections=conns):
+                msg = rd.deserialize(raw, conn.msgtype)
+                labels = msg.layout.dim[0].label.split(",")
+                rows.setdefault(f"{bag}{conn.topic}", []).append(dict(zip(labels, msg.data)))
+    losses = rows["bag/drive/losses"]
+    assert len(losses) == len(tr.state) == len(rows["bag/drive/state"])
+    assert list(losses[0]) == list(LOSSES_FIELDS)
+    for field in ("k", "p_dc", "p_sw_t", "tj_ta_hi", "t_sink", "t_winding"):
+        assert [row[field] for row in losses] == tr.col("losses", field).tolist()
+    for bag in ("bag", "plain"):
+        assert list(rows[f"{bag}/drive/state"][0]) == list(State._fields)
+
+
+def test_a_recording_that_sent_the_losses_in_the_state_reads_them_back(tmp_path):
+    """A bag of the version whose state carried the losses (``p_dc`` … ``t_rotor`` after the
+    state's fields) reads back with its losses, by label."""
+    from predictive_drive.bag import BagWriter
+    from predictive_drive.codec import CODECS, MultiArrayCodec, stamp_ns
+    from predictive_drive.readback import read_bag
+    from predictive_drive.recording import bag_info
+
+    sc = scenario("ipmsm_short", {"plant.losses.device": SIC_MOSFET}).with_duration(0.005)
+    tr = run_inprocess(sc)
+    old = MultiArrayCodec(State._fields + LOSS_FIELDS)
+    with BagWriter(tmp_path / "old", info=bag_info(sc, "inprocess")) as w:
+        for k in range(len(tr.state)):
+            ns = stamp_ns(tr.state[k, 1])
+            w.write("state", ns, old.encode((*tr.state[k], *tr.losses[k, 2:])))
+            w.write("reference", ns, CODECS["reference"].encode(tuple(tr.reference[k])))
+            if k < tr.steps:
+                w.write("command", ns, CODECS["command"].encode(tuple(tr.command[k])))
+    back, _ = read_bag(tmp_path / "old")
+    np.testing.assert_array_equal(back.state, tr.state)
+    np.testing.assert_array_equal(back.losses, tr.losses)
 
 
 def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_path):
@@ -242,7 +277,7 @@ def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_pa
     over = overheats(tr, sc.device)
     assert over, "no device ran hot"
     first = over[0]
-    tj = tr.col("state", f"tj_{first.device}")
+    tj = tr.col("losses", f"tj_{first.device}")
     k = round(first.t_first / sc.ts)
     assert tj[k] > 150.0 >= np.max(tj[:k]) and first.tj_max == pytest.approx(np.max(tj))
 
@@ -258,14 +293,14 @@ def test_the_losses_figure_draws_the_recorded_losses_and_temperatures():
     ax, tx = fig.axes
     lines = {ln.get_label(): ln for ln in ax.get_lines()}
     m = round(sc.plant.losses.thermal_step / sc.ts)
-    p = tr.col("state", "p_sw_t")[1:]
+    p = tr.col("losses", "p_sw_t")[1:]
     drawn = lines["switching, transistors"]
     np.testing.assert_allclose(drawn.get_xdata(), tr.col("state", "t")[m:])
     np.testing.assert_allclose(drawn.get_ydata()[5], p[5 : 5 + m].mean(), rtol=1e-12)
     temps = {ln.get_label(): ln for ln in tx.get_lines()}
     assert len(temps) == len(DEVICES) + 3
-    np.testing.assert_array_equal(temps["T_j ta_hi"].get_ydata(), tr.col("state", "tj_ta_hi"))
-    np.testing.assert_array_equal(temps["winding"].get_ydata(), tr.col("state", "t_winding"))
+    np.testing.assert_array_equal(temps["T_j ta_hi"].get_ydata(), tr.col("losses", "tj_ta_hi"))
+    np.testing.assert_array_equal(temps["winding"].get_ydata(), tr.col("losses", "t_winding"))
 
 
 def test_the_live_views_layout_plots_every_junction_temperature():
@@ -274,7 +309,7 @@ def test_the_live_views_layout_plots_every_junction_temperature():
 
     panels = foxglove_layout()["configById"].values()
     (temps,) = [p for p in panels if p.get("title", "").startswith("temperatures")]
-    fields = TOPICS["state"].fields
+    fields = TOPICS["losses"].fields
     named = [fields[int(p["value"].split("[")[1].rstrip("]"))] for p in temps["paths"]]
     assert named == [*(f"tj_{d}" for d in DEVICES), "t_sink", "t_winding", "t_rotor"]
 
@@ -292,8 +327,12 @@ def test_the_drive_cycle_heats_the_plant_away_from_the_controllers_model():
         cmd = c.controller.step(state, ref)
         ref = c.speed_pi.step(state)
         state = c.plant.step(cmd)
-    s = dict(zip(type(state)._fields, state))
-    assert s["t_winding"] > 21.0 and c.plant._coef.r_s > 1.003 * sc.controller.motor.r_s
+    s = c.plant.losses()._asdict()
+    assert (
+        s["k"] == state.k
+        and s["t_winding"] > 21.0
+        and c.plant._coef.r_s > 1.003 * sc.controller.motor.r_s
+    )
     assert sc.controller.motor == sc.plant.motor  # the controller's model is the plant's at 20 °C
     assert all(math.isfinite(s[f]) for f in LOSS_FIELDS) and s["p_iron"] > 0
 

@@ -35,14 +35,12 @@ import numpy as np
 
 from .devices import Device, EnergyTable, Grid, Part, grid_value
 from .fields import check_fields, choice, flag, quantity
-from .signals import DEVICES, LOSS_FIELDS
+from .signals import DEVICES
 from .thermal import Cauer, Foster
 from .trace import Trace
 
-__all__ = ["LOSS_NAN", "Ledger", "LossParams", "Overheat", "overheats"]
+__all__ = ["Ledger", "LossParams", "Overheat", "overheats"]
 
-#: the state's loss fields of a plant without losses
-LOSS_NAN: tuple[float, ...] = (math.nan,) * len(LOSS_FIELDS)
 _N = len(DEVICES)  #: 12: per leg the upper transistor and diode, the lower transistor and diode
 _T_HI, _D_HI, _T_LO, _D_LO = range(4)  #: a device's place in its leg
 
@@ -206,7 +204,7 @@ class Ledger:
             )
             self._t_machine = (t0, t0)
         self._temperatures = (*self._tj, self._t_sink, *self._t_machine)
-        #: the state's loss fields (:data:`~.signals.LOSS_FIELDS`) of the last period
+        #: the losses' fields after k and t (:data:`~.signals.LOSS_FIELDS`) of the last period
         self.fields: tuple[float, ...] = ((0.0,) * (9 + _N)) + self._temperatures
 
     def _die_part(self, die: int) -> Part:
@@ -381,11 +379,11 @@ class Overheat:
 def overheats(trace: Trace, device: Device | None) -> list[Overheat]:
     """The devices of a run whose junction temperature exceeded the device file's rating, in
     the order they first did (none without losses or a device)."""
-    if device is None:
+    if device is None or not trace.has_losses:
         return []
     out = []
     for name in DEVICES:
-        tj = trace.col("state", f"tj_{name}")
+        tj = trace.col("losses", f"tj_{name}")
         rated = (device.switch if name.startswith("t") else device.diode).t_j_max
         over = np.flatnonzero(tj > rated)
         if len(over):

@@ -32,12 +32,12 @@ from typing import Any
 
 from .devices import Device
 from .inverter import clarke, inverse_clarke, segments
-from .losses import LOSS_NAN, Ledger, LossParams
+from .losses import Ledger, LossParams
 from .machines import Machine
 from .machines.induction import IM_STATE, InductionCoefficients, InductionMotor, induction_exact
 from .machines.pmsm import PMSM, PMSM_STATE, PMSMCoefficients, pmsm_rk4
 from .sensors import Sensors
-from .signals import COMMAND_INDEX, PULSES, PhasePulses, State, new_record
+from .signals import COMMAND_INDEX, PULSES, Losses, PhasePulses, State, new_record
 from .thermal import COPPER_ALPHA, resistance_at
 from .timebase import StepProfile
 
@@ -332,9 +332,15 @@ class InverterPlant:
                 w,
                 the,
                 *self._avg,
-                *(LOSS_NAN if self._ledger is None else self._ledger.fields),
             ),
         )
+
+    def losses(self) -> Losses | None:
+        """The present step's losses and temperatures (the period that ended at k, the
+        temperatures at k); None where the plant books none (``plant.losses`` off)."""
+        if self._ledger is None:
+            return None
+        return new_record(Losses, (float(self.k), self.k * self.ts, *self._ledger.fields))
 
     def step(self, command: Sequence[float]) -> State:
         """Apply ``command`` (a :class:`Command`, or its row of numbers) for one period."""

@@ -34,10 +34,11 @@ __all__ = [
 ]
 
 #: called with the rows of consecutive steps as the trace packs them (little-endian doubles, one
-#: row per step): states, references, commands. The last call of a run also brings its final
-#: state and reference, which have no command (one row fewer). A run stopped by an exception
-#: hands over the steps it completed before the exception goes on.
-Sink = Callable[[bytes, bytes, bytes], None]
+#: row per step): states, references, commands, and the plant's losses (b"" where it books
+#: none). The last call of a run also brings its final state, reference and losses, which have
+#: no command (one row fewer). A run stopped by an exception hands over the steps it completed
+#: before the exception goes on.
+Sink = Callable[[bytes, bytes, bytes, bytes], None]
 #: steps handed to the sinks at once: 25.6 ms of a 20 kHz run (the sink's work then runs on
 #: arrays, a few numpy calls for hundreds of steps)
 SINK_BATCH = 512
@@ -130,17 +131,19 @@ def run_inprocess(
     c = build(scenario)
     plant, pi, ctrl = c.plant, c.speed_pi, c.controller
     builder = TraceBuilder(scenario.ts, strategy_names(scenario.family))
-    (s_add, s_pack), (r_add, r_pack), (c_add, c_pack) = (
-        builder.packer(r) for r in ("state", "reference", "command")
+    (s_add, s_pack), (r_add, r_pack), (c_add, c_pack), (l_add, l_pack) = (
+        builder.packer(r) for r in ("state", "reference", "command", "losses")
     )
+    losses = plant.losses  #: the plant's losses of its present step (None: it books none)
+    lossy = losses() is not None
     pending = sorted(switches)
     next_switch = pending[0][0] if pending else n
     state = plant.state()
     immediate = pi.immediate  # T* from state k applies at k (else at k+1: see SpeedPI)
     ref = pi.step(state) if immediate else pi.initial()
     every = max(1, n // 200)
-    buffers = [builder.buffers[r] for r in ("state", "reference", "command")]
-    handed = [0, 0, 0]  #: bytes of each buffer the sinks have had
+    buffers = [builder.buffers[r] for r in ("state", "reference", "command", "losses")]
+    handed = [0, 0, 0, 0]  #: bytes of each buffer the sinks have had
 
     def hand_over() -> None:
         rows = [bytes(b[h:]) for b, h in zip(buffers, handed)]
@@ -158,6 +161,8 @@ def run_inprocess(
                 next_switch = pending[0][0] if pending else n
             cmd = ctrl.step(state, ref)
             s_add(s_pack(*state))
+            if lossy:
+                l_add(l_pack(*losses()))  # type: ignore[misc]
             r_add(r_pack(*ref))
             c_add(c_pack(*cmd))
             if k + 1 == due:
@@ -172,6 +177,8 @@ def run_inprocess(
             if progress is not None and k % every == 0:
                 progress(k)
         s_add(s_pack(*state))
+        if lossy:
+            l_add(l_pack(*losses()))  # type: ignore[misc]
         r_add(r_pack(*ref))
     finally:  # what was completed reaches the sinks however the run ends
         if sinks:
