@@ -358,3 +358,49 @@ def test_report_prints_the_losses_efficiency_and_a_device_above_its_rating(tmp_p
     assert f"{m.tj_max:.1f} °C" in out and f"{m.tj_max_device} at" in out and "(rated 150" in out
     (o, *_) = r.details.overheats
     assert f"{'OVER T_j':<11}{o.device:>16}   above its rated 150 °C from {o.t_first:.4g} s" in out
+
+
+#: runs of every way the ledger books: both devices, a machine's losses with and without a device
+#: file, iron losses, an induction motor's rotor copper, a speed a load machine holds, dead time,
+#: the thermal step every period
+BOOKED = [
+    ("im_short", "db_mptc", {"plant.losses.device": IGBT_MODULE, "plant.losses.machine": True,
+                             "plant.losses.iron_hysteresis": 1.0, "plant.losses.iron_eddy": 0.01}),
+    ("im_steady_foc", "ifoc", {"plant.losses.device": IGBT_MODULE, "plant.dead_time": 2e-6,
+                               "plant.losses.thermal_step": 0.0}),
+    ("ipmsm_short", "mptc", {"plant.losses.device": SIC_MOSFET, "plant.losses.machine": True,
+                             "plant.losses.iron_hysteresis": 2.0}),
+    ("ipmsm_steady_foc", "foc_formula", {"plant.losses.device": LINEAR.name and str(LINEAR)}),
+    ("spmsm_short", "mptc", {"plant.losses.machine": True}),
+]  # fmt: skip
+
+
+def _booked(monkeypatch, booking, thermal, steps=600):
+    """The BOOKED runs with the ledger's booking ``booking`` and thermal step ``thermal`` (None:
+    the per-period reference in Python)."""
+    from predictive_drive.core import losses
+
+    monkeypatch.setattr(losses, "compiled_booking", lambda: booking)
+    monkeypatch.setattr(losses, "compiled_thermal", lambda: thermal)
+    return [run_inprocess(scenario(n, s, st), steps=steps) for n, st, s in BOOKED]
+
+
+@pytest.mark.parametrize("how", ["python", "compiled"])
+def test_the_compiled_booking_is_the_reference_bit_for_bit(monkeypatch, how):
+    """The kernel (core/losses_kernel.py) books a thermal step's periods at once with the
+    reference's arithmetic in its order: the same losses, temperatures and trajectory, bit for
+    bit — run as plain Python (no numba needed) and compiled."""
+    from predictive_drive.core import losses_kernel as lk
+
+    if how == "compiled":
+        if lk.kernel_unavailable():
+            pytest.skip(lk.kernel_unavailable())
+        booking, thermal = lk.compiled_booking(), lk.compiled_thermal()
+    else:
+        booking, thermal = lk.book, lk.thermal
+    kernel = _booked(monkeypatch, booking, thermal)
+    reference = _booked(monkeypatch, None, None)
+    for a, b, (name, _, _) in zip(kernel, reference, BOOKED):
+        assert a.has_losses and len(a.losses) == len(a.state), name
+        np.testing.assert_array_equal(a.losses, b.losses, err_msg=name)
+        np.testing.assert_array_equal(a.state, b.state, err_msg=name)

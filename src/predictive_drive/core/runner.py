@@ -131,11 +131,12 @@ def run_inprocess(
     c = build(scenario)
     plant, pi, ctrl = c.plant, c.speed_pi, c.controller
     builder = TraceBuilder(scenario.ts, strategy_names(scenario.family))
-    (s_add, s_pack), (r_add, r_pack), (c_add, c_pack), (l_add, l_pack) = (
-        builder.packer(r) for r in ("state", "reference", "command", "losses")
+    (s_add, s_pack), (r_add, r_pack), (c_add, c_pack) = (
+        builder.packer(r) for r in ("state", "reference", "command")
     )
-    losses = plant.losses  #: the plant's losses of its present step (None: it books none)
-    lossy = losses() is not None
+    #: the plant's losses, taken a batch of steps at a time (none: it books none)
+    lossy = plant.losses() is not None
+    l_add = builder.buffers["losses"].extend
     pending = sorted(switches)
     next_switch = pending[0][0] if pending else n
     state = plant.state()
@@ -146,13 +147,17 @@ def run_inprocess(
     handed = [0, 0, 0, 0]  #: bytes of each buffer the sinks have had
 
     def hand_over() -> None:
+        if lossy:  # the losses up to the last state added
+            l_add(plant.take_losses().astype("<f8", copy=False).tobytes())
+        if not sinks:
+            return
         rows = [bytes(b[h:]) for b, h in zip(buffers, handed)]
         for i, b in enumerate(buffers):
             handed[i] = len(b)
         for s in sinks:
             s(*rows)
 
-    due = SINK_BATCH if sinks else n + 1  #: the step after which the sinks have the next rows
+    due = SINK_BATCH if sinks or lossy else n + 1  #: the step after which the rows go on
     try:
         for k in range(n):
             if k >= next_switch:
@@ -161,8 +166,6 @@ def run_inprocess(
                 next_switch = pending[0][0] if pending else n
             cmd = ctrl.step(state, ref)
             s_add(s_pack(*state))
-            if lossy:
-                l_add(l_pack(*losses()))  # type: ignore[misc]
             r_add(r_pack(*ref))
             c_add(c_pack(*cmd))
             if k + 1 == due:
@@ -177,12 +180,9 @@ def run_inprocess(
             if progress is not None and k % every == 0:
                 progress(k)
         s_add(s_pack(*state))
-        if lossy:
-            l_add(l_pack(*losses()))  # type: ignore[misc]
         r_add(r_pack(*ref))
     finally:  # what was completed reaches the sinks however the run ends
-        if sinks:
-            hand_over()
+        hand_over()
     if progress is not None:
         progress(n)
     return builder.build()
