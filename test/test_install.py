@@ -164,6 +164,7 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     bench = ok_json(install, work, "bench", "--quick", timeout=300)
     assert bench["core_steps_per_s"] > 0 and bench["report_steps_per_s"] > 0
     assert 0 < bench["losses"]["of_real"] < 2 and bench["losses"]["losses_steps_per_s"] > 0
+    assert bench["losses"]["booking"] in ("compiled", "python")
     rows = [(h["strategy"], h["horizon"]) for h in bench["horizons"]]
     assert rows == [("mptc", n) for n in (1, 2, 3, 5)] + [("direct_mpc", n) for n in (1, 3, 5, 10)]
     assert all(h["of_core"] > 0 and h["of_core_near"] > 0 for h in bench["horizons"])
