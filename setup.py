@@ -41,7 +41,8 @@ setup(
         "live": ["foxglove-sdk>=0.30.3,<0.31"],
         # sweep: the Parquet table and Dask clusters (--scheduler)
         "sweep": ["pyarrow>=21,<27", "dask[distributed]>=2025.1,<2027"],
-        # fast: direct_mpc's sphere decoder compiled (core/control/kernels.py; about 210 MB)
+        # fast: the compiled kernels, direct_mpc's sphere decoder (core/control/kernels.py) and
+        # the losses' booking (core/losses_kernel.py); about 210 MB
         "fast": ["numba>=0.60,<1"],
         "test": ["pytest>=8,<10", "pytest-xdist>=3.5,<4", "rosbags>=0.10,<0.12", "mcap-ros2-support>=0.5,<0.7",
                  "colcon-core>=0.17,<0.22", "colcon-ros>=0.5,<0.6",

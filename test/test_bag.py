@@ -14,10 +14,11 @@ from predictive_drive.bag import BagWriter
 from predictive_drive.config import load_scenario
 from predictive_drive.core.runner import run_inprocess
 from predictive_drive.errors import BagError
-from predictive_drive.interface import BAG_TOPICS, TOPICS
+from predictive_drive.interface import TOPICS, bag_topics
 from predictive_drive.readback import read_bag
 
 pytestmark = pytest.mark.core
+BAG_TOPICS = bag_topics(losses=False)  #: the topics of a run without plant.losses
 
 
 @pytest.fixture(scope="module")

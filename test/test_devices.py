@@ -26,8 +26,8 @@ pytestmark = pytest.mark.core
 
 DATA = Path(__file__).with_name("data")
 LINEAR = DATA / "linear_igbt.json"  #: straight output lines, E ∝ i at 312 V, one temperature
-FUJI = "fuji_2mbi100xaa120_50"
-WOLFSPEED = "wolfspeed_c3m0060065j"
+IGBT_MODULE = "semikron_skm150gb124d"
+SIC_MOSFET = "wolfspeed_c3m0065100j"
 
 
 def scenario(name: str, settings: dict, strategy: str | None = None):
@@ -39,12 +39,46 @@ def scenario(name: str, settings: dict, strategy: str | None = None):
 
 
 def test_the_shipped_devices_load_with_their_datasheets_named():
-    assert {FUJI, WOLFSPEED} <= set(device_names())
-    for name, kind in ((FUJI, "IGBT"), (WOLFSPEED, "SiC-MOSFET")):
+    assert {IGBT_MODULE, SIC_MOSFET} <= set(device_names())
+    for name, kind in ((IGBT_MODULE, "IGBT"), (SIC_MOSFET, "SiC-MOSFET")):
         d = scenario("ipmsm_short", {"plant.losses.device": name}).device
         assert d is not None and d.type == kind
-        assert d.datasheet.startswith("https://") and d.datasheet_date and d.comment
-        assert d.switch.lines and d.switch.energies and len(d.switch.r_th) == 4
+        assert d.datasheet_date and d.datasheet_version and d.comment
+        assert len(d.switch.lines) == 2 and set(d.switch.energies) == {"e_on", "e_off"}
+        assert len(d.switch.r_th) == 1 and "e_rr" in d.diode.energies
+
+
+@pytest.mark.parametrize(
+    ("name", "switch", "diode"),
+    [
+        # the tables' typical values: per temperature the line through V_CEsat (V_F) at 100 A
+        # and 150 A, V = v0 + r i; the energies' one point each (J at A, V, degC)
+        (IGBT_MODULE, {25.0: (1.1, 0.010, 2.1), 125.0: (1.0, 0.014, 2.4)},
+         {25.0: (1.5, 0.005, 2.0), 125.0: (1.2, 0.006, 1.8)}),
+        # R_DS(on) at 20 A; the body diode's V_SD at 10 A on a line from its 3.0 V knee
+        (SIC_MOSFET, {25.0: (0.0, 0.065, 1.3), 150.0: (0.0, 0.090, 1.8)},
+         {25.0: (3.0, 0.18, 4.8), 150.0: (3.0, 0.14, 4.4)}),
+    ],
+    ids=["igbt_module", "sic_mosfet"],
+)  # fmt: skip
+def test_a_shipped_device_holds_its_datasheets_typical_values(name, switch, diode):
+    d = load_device(resolve_scenario_path("im_short").parent / "devices" / f"{name}.json")
+    at = 100.0 if d.type == "IGBT" else None
+    for part, table in ((d.switch, switch), (d.diode, diode)):
+        for t_j, (v0, r, v_at) in table.items():
+            assert part.line(t_j) == pytest.approx((v0, r), abs=1e-12)
+            i = at or (20.0 if part is d.switch else 10.0)
+            assert v0 + r * i == pytest.approx(v_at, abs=1e-12)
+    energies = {  # (E at the test point, its current, voltage)
+        IGBT_MODULE: {"e_on": (0.012, 100.0, 600.0), "e_off": (0.013, 100.0, 600.0)},
+        SIC_MOSFET: {"e_on": (157e-6, 20.0, 700.0), "e_off": (35e-6, 20.0, 700.0)},
+    }[name]
+    for e, (joules, i, v) in energies.items():
+        for t_j in (25.0, 150.0):  # one temperature in the table: held
+            assert d.switch.energy(e, i, t_j, v) == pytest.approx(joules, rel=1e-12)
+            assert d.switch.energy(e, i / 4, t_j, v) == pytest.approx(joules / 4, rel=1e-12)
+    q_rr, i_rr, v_rr = (12e-6, 100.0, 600.0) if name == IGBT_MODULE else (310e-9, 20.0, 700.0)
+    assert d.diode.energy("e_rr", i_rr, 125.0, v_rr) == pytest.approx(q_rr * v_rr / 4, rel=1e-12)
 
 
 def test_a_straight_output_curve_gives_its_own_line_and_energies_scale_with_voltage():
@@ -57,16 +91,23 @@ def test_a_straight_output_curve_gives_its_own_line_and_energies_scale_with_volt
     assert d.diode.energy("e_on", 20.0, 25.0, 312.0) == 0.0  # a diode has none
 
 
-def test_energies_and_lines_are_linear_in_junction_temperature_between_the_curves():
-    d = load_device(resolve_scenario_path("im_short").parent / "devices" / f"{FUJI}.json")
+def test_energies_and_lines_are_linear_in_junction_temperature_between_the_curves(tmp_path):
+    d = load_device(resolve_scenario_path("im_short").parent / "devices" / f"{IGBT_MODULE}.json")
     at = {ln.t_j: (ln.v0, ln.r) for ln in d.switch.lines}
     mid = d.switch.line(75.0)
     assert mid == pytest.approx([(a + b) / 2 for a, b in zip(at[25.0], at[125.0])], rel=1e-12)
-    e25, e125 = (d.switch.energy("e_on", 30.0, t, 600.0) for t in (25.0, 125.0))
-    assert d.switch.energy("e_on", 30.0, 75.0, 600.0) == pytest.approx((e25 + e125) / 2)
-    assert d.switch.energy("e_on", 30.0, 200.0, 600.0) == d.switch.energy(
-        "e_on", 30.0, 175.0, 600.0
-    )
+    assert d.switch.line(200.0) == d.switch.line(125.0)  # held beyond the curves
+    # energies given at two temperatures (the test device's E_on again at 125 degC, doubled)
+    doc = json.loads(LINEAR.read_text())
+    hot = json.loads(json.dumps(doc["switch"]["e_on"][0]))
+    hot["t_j"], hot["graph_i_e"][1] = 125, [0.0, 0.004]
+    doc["switch"]["e_on"].append(hot)
+    (tmp_path / "two.json").write_text(json.dumps(doc))
+    two = load_device(tmp_path / "two.json")
+    e25, e125 = (two.switch.energy("e_on", 30.0, t, 312.0) for t in (25.0, 125.0))
+    assert e125 == pytest.approx(2 * e25, rel=1e-12)
+    assert two.switch.energy("e_on", 30.0, 75.0, 312.0) == pytest.approx((e25 + e125) / 2)
+    assert two.switch.energy("e_on", 30.0, 200.0, 312.0) == pytest.approx(e125, rel=1e-12)
 
 
 def _mutated(tmp_path: Path, change) -> Path:
@@ -134,8 +175,10 @@ def test_a_bad_device_file_is_refused_naming_file_field_and_range(tmp_path, chan
 
 
 def test_a_device_below_the_dc_links_voltage_is_refused():
-    with pytest.raises(ConfigError, match=r"v_abs_max 650 V is below the DC link \(plant.u_dc 700"):
-        scenario("ipmsm_short", {"plant.losses.device": WOLFSPEED, "plant.u_dc": 700.0})
+    with pytest.raises(
+        ConfigError, match=r"v_abs_max 1000 V is below the DC link \(plant.u_dc 1100"
+    ):
+        scenario("ipmsm_short", {"plant.losses.device": SIC_MOSFET, "plant.u_dc": 1100.0})
 
 
 @pytest.mark.parametrize(
@@ -154,7 +197,7 @@ def test_a_thermal_network_with_a_non_positive_r_or_tau_is_refused(key, value, s
 
 def test_a_device_file_beside_a_constant_drop_is_refused():
     with pytest.raises(ConfigError, match="the device file gives the on-state voltages"):
-        scenario("im_short", {"plant.losses.device": FUJI, "plant.device_drop": 1.0})
+        scenario("im_short", {"plant.losses.device": IGBT_MODULE, "plant.device_drop": 1.0})
 
 
 # -- thermal networks ---------------------------------------------------------------------------

@@ -67,9 +67,10 @@ def cli_run(tmp_path):
 
 
 def assert_same_run(a, b) -> None:
-    """Two traces hold the same state, reference and command sequences bit for bit (the measured
-    compute_ns aside)."""
+    """Two traces hold the same state, reference and command sequences (and losses) bit for bit
+    (the measured compute_ns aside)."""
     np.testing.assert_array_equal(a.state, b.state)
+    np.testing.assert_array_equal(a.losses, b.losses)
     np.testing.assert_array_equal(a.reference, b.reference)
     np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
 
@@ -777,7 +778,7 @@ def test_losses_and_temperatures_through_the_graph_equal_inprocess(tmp_path):
     bit; the bag stores the file it read (docs/physics.md#losses-and-temperature)."""
     settings = {
         "plant.dead_time": 1e-6,
-        "plant.losses.device": "fuji_2mbi100xaa120_50",
+        "plant.losses.device": "semikron_skm150gb124d",
         "plant.losses.machine": True,
         "plant.losses.iron_eddy": 0.01,
     }
@@ -787,8 +788,9 @@ def test_losses_and_temperatures_through_the_graph_equal_inprocess(tmp_path):
     b, _ = read_bag(i.bag)
     assert info.complete and a.steps == b.steps == 1000
     assert_same_run(a, b)
-    assert np.isfinite(a.col("state", "tj_ta_hi")).all() and a.col("state", "p_sw_t").any()
-    assert '"2MBI100XAA120-50"' in info.info["device_json"]
+    assert len(a.losses) == len(a.state) == 1001 and info.counts["/drive/losses"] == 1001
+    assert np.isfinite(a.col("losses", "tj_ta_hi")).all() and a.col("losses", "p_sw_t").any()
+    assert '"SKM 150 GB 124 D"' in info.info["device_json"]
 
 
 def test_field_orientation_at_a_held_point_through_the_graph_equals_inprocess(tmp_path):

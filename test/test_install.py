@@ -73,14 +73,14 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     runs = {}
     for engine in ("inprocess", "composed", "ros"):
         # the node processes with losses on: the device file comes from the install's share
-        losses = ["--set", "plant.losses.device=fuji_2mbi100xaa120_50"] if engine == "ros" else []
+        losses = ["--set", "plant.losses.device=semikron_skm150gb124d"] if engine == "ros" else []
         out = ok_json(install, work, "run", "im_short", "--engine", engine, "--duration", "0.1",
                       "--out", f"bags/{engine}", *losses)  # fmt: skip
         assert out["steps"] == 2000 and out["engine"] == engine
         assert 0 < out["metrics"]["t_rmse"] < 10
         runs[engine] = out
     assert (work / "bags" / "ros" / "logs" / "plant.log").is_file()
-    assert runs["ros"]["metrics"]["p_inverter"] > 0 and runs["ros"]["device"] == "2MBI100XAA120-50"
+    assert runs["ros"]["metrics"]["p_inverter"] > 0 and runs["ros"]["device"] == "SKM 150 GB 124 D"
 
     # report, with the figures (matplotlib from the `figures` extra)
     rep = ok_json(install, work, "report", "bags/ros", "--figures", "figures")
@@ -164,6 +164,7 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     bench = ok_json(install, work, "bench", "--quick", timeout=300)
     assert bench["core_steps_per_s"] > 0 and bench["report_steps_per_s"] > 0
     assert 0 < bench["losses"]["of_real"] < 2 and bench["losses"]["losses_steps_per_s"] > 0
+    assert bench["losses"]["booking"] in ("compiled", "python")
     rows = [(h["strategy"], h["horizon"]) for h in bench["horizons"]]
     assert rows == [("mptc", n) for n in (1, 2, 3, 5)] + [("direct_mpc", n) for n in (1, 3, 5, 10)]
     assert all(h["of_core"] > 0 and h["of_core_near"] > 0 for h in bench["horizons"])

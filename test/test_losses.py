@@ -14,9 +14,11 @@ from predictive_drive.core.devices import Device, Line, Part, load_device
 from predictive_drive.core.losses import LossParams
 from predictive_drive.core.metrics import compute_metrics, whole_cycles
 from predictive_drive.core.runner import build, run_inprocess
-from predictive_drive.core.signals import DEVICES, LOSS_FIELDS, State
+from predictive_drive.core.signals import DEVICES, LOSS_FIELDS, Losses, State
 from predictive_drive.core.thermal import COPPER_ALPHA, resistance_at
-from test_devices import FUJI, LINEAR, WOLFSPEED, scenario
+from test_devices import IGBT_MODULE, LINEAR, SIC_MOSFET, scenario
+
+LOSSES_FIELDS = Losses._fields
 
 pytestmark = pytest.mark.core
 
@@ -26,12 +28,12 @@ pytestmark = pytest.mark.core
 #: every family on a real drive with losses: IM and PMSM, MPTC, FOC and direct MPC, free shafts
 #: and held ones, dead time, device files, machine losses with iron losses
 FAMILIES = [
-    ("im_short", "db_mptc", FUJI, 0.1),
-    ("im_steady_foc", "ifoc", FUJI, 0.1),
-    ("ipmsm_short", "mptc", WOLFSPEED, 0.1),
-    ("ipmsm_steady_foc", "foc_formula", WOLFSPEED, 0.08),
-    ("ipmsm_steady_mpc", "direct_mpc", WOLFSPEED, 0.05),
-    ("hs_ipmsm_mtpa_short", "foc_injection", WOLFSPEED, 0.3),
+    ("im_short", "db_mptc", IGBT_MODULE, 0.1),
+    ("im_steady_foc", "ifoc", IGBT_MODULE, 0.1),
+    ("ipmsm_short", "mptc", SIC_MOSFET, 0.1),
+    ("ipmsm_steady_foc", "foc_formula", SIC_MOSFET, 0.08),
+    ("ipmsm_steady_mpc", "direct_mpc", SIC_MOSFET, 0.05),
+    ("hs_ipmsm_mtpa_short", "foc_injection", SIC_MOSFET, 0.3),
 ]
 
 
@@ -68,7 +70,7 @@ def test_the_energy_drawn_from_the_dc_link_is_every_loss_work_and_stored_energy(
     }
     sc = scenario(name, settings, strategy)
     tr = run_inprocess(sc, steps=round(duration / sc.ts))
-    energy = {f: float(np.sum(tr.col("state", f)[1:])) * sc.ts for f in LOSS_FIELDS[:9]}
+    energy = {f: float(np.sum(tr.col("losses", f)[1:])) * sc.ts for f in LOSS_FIELDS[:9]}
     m = sc.plant.motor
     w = tr.truth("omega_m")
     kinetic = 0.0 if sc.plant.held else 0.5 * m.j * (w[-1] ** 2 - w[0] ** 2)
@@ -77,11 +79,11 @@ def test_the_energy_drawn_from_the_dc_link_is_every_loss_work_and_stored_energy(
         energy["p_shaft"] + energy["p_friction"] + energy["p_copper"] + energy["p_cond_t"]
         + energy["p_cond_d"] + kinetic + magnetic[-1] - magnetic[0]
     )  # fmt: skip
-    drawn = float(np.sum(np.abs(tr.col("state", "p_dc")[1:]))) * sc.ts
+    drawn = float(np.sum(np.abs(tr.col("losses", "p_dc")[1:]))) * sc.ts
     assert abs(energy["p_dc"] - spent) < 1e-3 * drawn, (energy, kinetic, magnetic[-1])
     assert energy["p_copper"] > 0 and energy["p_cond_t"] > 0 and energy["p_sw_t"] > 0
     assert energy["p_iron"] > 0
-    assert tr.col("state", "t_winding")[-1] > sc.plant.losses.coolant + 0.5
+    assert tr.col("losses", "t_winding")[-1] > sc.plant.losses.coolant + 0.5
 
 
 def _linear_device() -> Device:
@@ -131,7 +133,7 @@ def test_svpwm_losses_agree_with_the_closed_form_average_losses(torque, rpm):
     }  # fmt: skip
     periods = slice(w.k0 + 1, w.k0 + w.n + 1)
     for field, value in expected.items():
-        per_device = float(np.mean(tr.col("state", field)[periods])) / 6
+        per_device = float(np.mean(tr.col("losses", field)[periods])) / 6
         assert per_device == pytest.approx(value, rel=0.03), field
 
 
@@ -148,18 +150,17 @@ def test_a_device_of_constant_on_state_voltage_is_the_plants_device_drop_bit_for
         sc, plant=dataclasses.replace(sc.plant, losses=LossParams(device="flat")), device=device
     )
     booked = run_inprocess(sc, steps=2000)
-    n = State._fields.index(LOSS_FIELDS[0])
-    assert np.array_equal(dropped.state[:, :n], booked.state[:, :n], equal_nan=True)
+    assert np.array_equal(dropped.state, booked.state, equal_nan=True)
     assert np.array_equal(dropped.command[:, :-1], booked.command[:, :-1], equal_nan=True)
-    assert np.isnan(dropped.state[:, n:]).all()
-    assert np.isfinite(booked.col("state", "p_cond_d")[1:]).all()
+    assert not dropped.has_losses and len(booked.losses) == len(booked.state)
+    assert np.isfinite(booked.col("losses", "p_cond_d")[1:]).all()
 
 
 def test_junction_and_winding_temperatures_set_the_devices_and_the_plants_parameters():
     """Every thermal step the devices' lines follow their T_j and the plant's R_s and ψ_f its
     winding and rotor temperatures; the controller keeps its nominal model."""
     settings = {
-        "plant.losses.device": WOLFSPEED,
+        "plant.losses.device": SIC_MOSFET,
         "plant.losses.machine": True,
         "plant.losses.winding_tau": 0.02,
         "plant.losses.rotor_tau": 0.02,
@@ -176,8 +177,8 @@ def test_junction_and_winding_temperatures_set_the_devices_and_the_plants_parame
         ref = c.speed_pi.step(state)
         state = c.plant.step(cmd)
     p, m, d = c.plant, sc.plant.motor, sc.device
-    s = dict(zip(type(state)._fields, state))
-    assert s["t_winding"] > 60.0 and s["t_rotor"] > 45.0
+    s = p.losses()._asdict()
+    assert s["k"] == state.k and s["t_winding"] > 60.0 and s["t_rotor"] > 45.0
     t_ref = sc.plant.losses.motor_temperature
     assert p._coef.r_s == pytest.approx(resistance_at(m.r_s, s["t_winding"], t_ref, COPPER_ALPHA))
     assert p._coef.psi_f == pytest.approx(m.psi_f * (1 - 0.0011 * (s["t_rotor"] - t_ref)))
@@ -194,46 +195,80 @@ def test_a_run_without_losses_has_no_loss_figures_and_one_with_them_reads_them_b
 
     plain = compute_metrics(run_inprocess(scenario("ipmsm_short", {}), steps=400))
     assert math.isnan(plain.p_in) and plain.tj_max_device == ""
-    settings = {"plant.losses.device": WOLFSPEED, "plant.losses.machine": True}
+    settings = {"plant.losses.device": SIC_MOSFET, "plant.losses.machine": True}
     sc = scenario("ipmsm_short", settings).with_duration(0.05)
     run_inprocess_to_bag(sc, tmp_path / "bag")
     r = report(tmp_path / "bag")
     tr = run_inprocess(sc)
     k0, k1 = round(r.metrics.t_start / sc.ts), round(r.metrics.t_end / sc.ts)
     periods = slice(k0 + 1, k1 + 1)
-    inverter = sum(float(np.mean(tr.col("state", f)[periods])) for f in LOSS_FIELDS[5:9])
+    inverter = sum(float(np.mean(tr.col("losses", f)[periods])) for f in LOSS_FIELDS[5:9])
     assert r.metrics.p_inverter == pytest.approx(inverter, rel=1e-12)
-    tj = np.array([tr.col("state", f"tj_{n}")[k0:k1] for n in DEVICES])
+    tj = np.array([tr.col("losses", f"tj_{n}")[k0:k1] for n in DEVICES])
     assert r.metrics.tj_max == pytest.approx(float(tj.max()))
     assert r.metrics.tj_max_device == DEVICES[int(np.argmax(tj.max(axis=1)))]
     assert 0.0 < r.metrics.efficiency < 1.0 or math.isnan(r.metrics.efficiency)
-    assert r.details.device == "C3M0060065J" and r.details.rated_tj == (175.0, 175.0)
+    assert r.details.device == "C3M0065100J" and r.details.rated_tj == (150.0, 150.0)
     from predictive_drive.core.metrics import METRICS
 
     for m in (plain, r.metrics):  # every declared figure formats, a sweep's or a table's
         scalars = {k: v for k, v in m.as_dict().items() if isinstance(v, (int, float, str))}
         shown = {k: METRICS[k].with_unit(v) for k, v in scalars.items()}
         assert shown["tj_max_device"] == (r.metrics.tj_max_device if m is r.metrics else "-")
-    # an independent reader sees them as fields of /drive/state, by label
+    # an independent reader sees them on /drive/losses, one message a step, by label; the
+    # state is as without losses, and a run without them has no such topic
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    rows = []
-    with AnyReader([tmp_path / "bag"], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as rd:
-        conns = [c for c in rd.connections if c.topic == "/drive/state"]
-        for conn, _, raw in rd.messages(connections=conns):
-            msg = rd.deserialize(raw, conn.msgtype)
-            rows.append(dict(zip(msg.layout.dim[0].label.split(","), msg.data)))
-    assert len(rows) == len(tr.state)
-    for field in ("p_dc", "p_sw_t", "tj_ta_hi", "t_sink", "t_winding"):
-        assert [row[field] for row in rows] == tr.col("state", field).tolist()
+    run_inprocess_to_bag(scenario("ipmsm_short", {}).with_duration(0.005), tmp_path / "plain")
+    rows: dict[str, list[dict[str, float]]] = {}
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for bag in ("bag", "plain"):
+        with AnyReader([tmp_path / bag], default_typestore=store) as rd:
+            topics = {c.topic for c in rd.connections}
+            assert ("/drive/losses" in topics) == (bag == "bag"), topics
+            conns = [c for c in rd.connections if c.topic in ("/drive/losses", "/drive/state")]
+            for conn, _, raw in rd.messages(connections=conns):
+                msg = rd.deserialize(raw, conn.msgtype)
+                labels = msg.layout.dim[0].label.split(",")
+                rows.setdefault(f"{bag}{conn.topic}", []).append(dict(zip(labels, msg.data)))
+    losses = rows["bag/drive/losses"]
+    assert len(losses) == len(tr.state) == len(rows["bag/drive/state"])
+    assert list(losses[0]) == list(LOSSES_FIELDS)
+    for field in ("k", "p_dc", "p_sw_t", "tj_ta_hi", "t_sink", "t_winding"):
+        assert [row[field] for row in losses] == tr.col("losses", field).tolist()
+    for bag in ("bag", "plain"):
+        assert list(rows[f"{bag}/drive/state"][0]) == list(State._fields)
+
+
+def test_a_recording_that_sent_the_losses_in_the_state_reads_them_back(tmp_path):
+    """A bag of the version whose state carried the losses (``p_dc`` … ``t_rotor`` after the
+    state's fields) reads back with its losses, by label."""
+    from predictive_drive.bag import BagWriter
+    from predictive_drive.codec import CODECS, MultiArrayCodec, stamp_ns
+    from predictive_drive.readback import read_bag
+    from predictive_drive.recording import bag_info
+
+    sc = scenario("ipmsm_short", {"plant.losses.device": SIC_MOSFET}).with_duration(0.005)
+    tr = run_inprocess(sc)
+    old = MultiArrayCodec(State._fields + LOSS_FIELDS)
+    with BagWriter(tmp_path / "old", info=bag_info(sc, "inprocess")) as w:
+        for k in range(len(tr.state)):
+            ns = stamp_ns(tr.state[k, 1])
+            w.write("state", ns, old.encode((*tr.state[k], *tr.losses[k, 2:])))
+            w.write("reference", ns, CODECS["reference"].encode(tuple(tr.reference[k])))
+            if k < tr.steps:
+                w.write("command", ns, CODECS["command"].encode(tuple(tr.command[k])))
+    back, _ = read_bag(tmp_path / "old")
+    np.testing.assert_array_equal(back.state, tr.state)
+    np.testing.assert_array_equal(back.losses, tr.losses)
 
 
 def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_path):
     from predictive_drive.core.losses import overheats
 
     settings = {
-        "plant.losses.device": WOLFSPEED,
+        "plant.losses.device": SIC_MOSFET,
         "plant.losses.mounting_r_th": 30.0,  # a device hung in the air
         "plant.losses.thermal_step": 5e-5,
     }
@@ -242,30 +277,30 @@ def test_a_device_above_its_rated_junction_temperature_is_named_with_when(tmp_pa
     over = overheats(tr, sc.device)
     assert over, "no device ran hot"
     first = over[0]
-    tj = tr.col("state", f"tj_{first.device}")
+    tj = tr.col("losses", f"tj_{first.device}")
     k = round(first.t_first / sc.ts)
-    assert tj[k] > 175.0 >= np.max(tj[:k]) and first.tj_max == pytest.approx(np.max(tj))
+    assert tj[k] > 150.0 >= np.max(tj[:k]) and first.tj_max == pytest.approx(np.max(tj))
 
 
 def test_the_losses_figure_draws_the_recorded_losses_and_temperatures():
     pytest.importorskip("matplotlib")
     from predictive_drive.reports.figures import Run, run_figures
 
-    settings = {"plant.losses.device": FUJI, "plant.losses.machine": True}
+    settings = {"plant.losses.device": IGBT_MODULE, "plant.losses.machine": True}
     sc = scenario("im_short", settings, "db_mptc")
     tr = run_inprocess(sc, steps=1000)
     fig = run_figures(Run(tr, sc, "im_short"))["losses"]
     ax, tx = fig.axes
     lines = {ln.get_label(): ln for ln in ax.get_lines()}
     m = round(sc.plant.losses.thermal_step / sc.ts)
-    p = tr.col("state", "p_sw_t")[1:]
+    p = tr.col("losses", "p_sw_t")[1:]
     drawn = lines["switching, transistors"]
     np.testing.assert_allclose(drawn.get_xdata(), tr.col("state", "t")[m:])
     np.testing.assert_allclose(drawn.get_ydata()[5], p[5 : 5 + m].mean(), rtol=1e-12)
     temps = {ln.get_label(): ln for ln in tx.get_lines()}
     assert len(temps) == len(DEVICES) + 3
-    np.testing.assert_array_equal(temps["T_j ta_hi"].get_ydata(), tr.col("state", "tj_ta_hi"))
-    np.testing.assert_array_equal(temps["winding"].get_ydata(), tr.col("state", "t_winding"))
+    np.testing.assert_array_equal(temps["T_j ta_hi"].get_ydata(), tr.col("losses", "tj_ta_hi"))
+    np.testing.assert_array_equal(temps["winding"].get_ydata(), tr.col("losses", "t_winding"))
 
 
 def test_the_live_views_layout_plots_every_junction_temperature():
@@ -274,7 +309,7 @@ def test_the_live_views_layout_plots_every_junction_temperature():
 
     panels = foxglove_layout()["configById"].values()
     (temps,) = [p for p in panels if p.get("title", "").startswith("temperatures")]
-    fields = TOPICS["state"].fields
+    fields = TOPICS["losses"].fields
     named = [fields[int(p["value"].split("[")[1].rstrip("]"))] for p in temps["paths"]]
     assert named == [*(f"tj_{d}" for d in DEVICES), "t_sink", "t_winding", "t_rotor"]
 
@@ -292,8 +327,12 @@ def test_the_drive_cycle_heats_the_plant_away_from_the_controllers_model():
         cmd = c.controller.step(state, ref)
         ref = c.speed_pi.step(state)
         state = c.plant.step(cmd)
-    s = dict(zip(type(state)._fields, state))
-    assert s["t_winding"] > 21.0 and c.plant._coef.r_s > 1.003 * sc.controller.motor.r_s
+    s = c.plant.losses()._asdict()
+    assert (
+        s["k"] == state.k
+        and s["t_winding"] > 21.0
+        and c.plant._coef.r_s > 1.003 * sc.controller.motor.r_s
+    )
     assert sc.controller.motor == sc.plant.motor  # the controller's model is the plant's at 20 °C
     assert all(math.isfinite(s[f]) for f in LOSS_FIELDS) and s["p_iron"] > 0
 
@@ -304,7 +343,7 @@ def test_report_prints_the_losses_efficiency_and_a_device_above_its_rating(tmp_p
     from predictive_drive.cli.common import print_recording
 
     settings = {
-        "plant.losses.device": WOLFSPEED,
+        "plant.losses.device": SIC_MOSFET,
         "plant.losses.machine": True,
         "plant.losses.mounting_r_th": 30.0,  # a device hung in the air: it runs hot
         "plant.losses.thermal_step": 5e-5,
@@ -316,6 +355,52 @@ def test_report_prints_the_losses_efficiency_and_a_device_above_its_rating(tmp_p
     m = r.metrics
     assert f"T {m.p_cond_t:.3g} W  D {m.p_cond_d:.3g} W" in out
     assert f"{100 * m.efficiency:.2f} %" in out and "into the load of" in out
-    assert f"{m.tj_max:.1f} °C" in out and f"{m.tj_max_device} at" in out and "(rated 175" in out
+    assert f"{m.tj_max:.1f} °C" in out and f"{m.tj_max_device} at" in out and "(rated 150" in out
     (o, *_) = r.details.overheats
-    assert f"{'OVER T_j':<11}{o.device:>16}   above its rated 175 °C from {o.t_first:.4g} s" in out
+    assert f"{'OVER T_j':<11}{o.device:>16}   above its rated 150 °C from {o.t_first:.4g} s" in out
+
+
+#: runs of every way the ledger books: both devices, a machine's losses with and without a device
+#: file, iron losses, an induction motor's rotor copper, a speed a load machine holds, dead time,
+#: the thermal step every period
+BOOKED = [
+    ("im_short", "db_mptc", {"plant.losses.device": IGBT_MODULE, "plant.losses.machine": True,
+                             "plant.losses.iron_hysteresis": 1.0, "plant.losses.iron_eddy": 0.01}),
+    ("im_steady_foc", "ifoc", {"plant.losses.device": IGBT_MODULE, "plant.dead_time": 2e-6,
+                               "plant.losses.thermal_step": 0.0}),
+    ("ipmsm_short", "mptc", {"plant.losses.device": SIC_MOSFET, "plant.losses.machine": True,
+                             "plant.losses.iron_hysteresis": 2.0}),
+    ("ipmsm_steady_foc", "foc_formula", {"plant.losses.device": LINEAR.name and str(LINEAR)}),
+    ("spmsm_short", "mptc", {"plant.losses.machine": True}),
+]  # fmt: skip
+
+
+def _booked(monkeypatch, booking, thermal, steps=600):
+    """The BOOKED runs with the ledger's booking ``booking`` and thermal step ``thermal`` (None:
+    the per-period reference in Python)."""
+    from predictive_drive.core import losses
+
+    monkeypatch.setattr(losses, "compiled_booking", lambda: booking)
+    monkeypatch.setattr(losses, "compiled_thermal", lambda: thermal)
+    return [run_inprocess(scenario(n, s, st), steps=steps) for n, st, s in BOOKED]
+
+
+@pytest.mark.parametrize("how", ["python", "compiled"])
+def test_the_compiled_booking_is_the_reference_bit_for_bit(monkeypatch, how):
+    """The kernel (core/losses_kernel.py) books a thermal step's periods at once with the
+    reference's arithmetic in its order: the same losses, temperatures and trajectory, bit for
+    bit — run as plain Python (no numba needed) and compiled."""
+    from predictive_drive.core import losses_kernel as lk
+
+    if how == "compiled":
+        if lk.kernel_unavailable():
+            pytest.skip(lk.kernel_unavailable())
+        booking, thermal = lk.compiled_booking(), lk.compiled_thermal()
+    else:
+        booking, thermal = lk.book, lk.thermal
+    kernel = _booked(monkeypatch, booking, thermal)
+    reference = _booked(monkeypatch, None, None)
+    for a, b, (name, _, _) in zip(kernel, reference, BOOKED):
+        assert a.has_losses and len(a.losses) == len(a.state), name
+        np.testing.assert_array_equal(a.losses, b.losses, err_msg=name)
+        np.testing.assert_array_equal(a.state, b.state, err_msg=name)

@@ -249,6 +249,24 @@ def test_replay_into_the_strategy_that_made_it_reproduces_every_command(
     assert d.compute_us_per_step == times[len(times) // 2] / 1e3  # the median step
 
 
+def test_replay_into_keeps_the_recorded_plants_losses(tmp_path):
+    """A recording with the plant's losses (/drive/losses) replayed into its strategy: the new
+    bag holds the recorded losses beside the recorded states, step for step."""
+    from predictive_drive.api.replay import replay_into
+    from predictive_drive.config import apply_settings, load_scenario_text, resolve_scenario_path
+    from predictive_drive.readback import read_bag
+
+    p = resolve_scenario_path("im_short")
+    text = apply_settings(p.read_text(), {"plant.losses.device": "semikron_skm150gb124d"}, p)
+    sc = load_scenario_text(text, p).with_strategy("db_mptc").with_duration(0.01)
+    run_inprocess_to_bag(sc, tmp_path / "rec")
+    assert replay_into(tmp_path / "rec", out=tmp_path / "again").pulse_agreement == 1.0
+    (a, _), (b, info) = read_bag(tmp_path / "rec"), read_bag(tmp_path / "again")
+    assert a.has_losses and info.counts[TOPICS["losses"].name] == len(a.state)
+    np.testing.assert_array_equal(b.losses, a.losses)
+    np.testing.assert_array_equal(b.state, a.state)
+
+
 def test_replay_into_another_strategy_and_across_a_recorded_switch(tmp_path):
     from predictive_drive.api.replay import replay_into
     from predictive_drive.api.run import run

@@ -392,7 +392,7 @@ def test_losses_on_a_saturating_machine_are_refused_before_the_run():
     from predictive_drive.api.run import run
     from predictive_drive.errors import ConfigError
 
-    for key, value in (("plant.losses.device", "wolfspeed_c3m0060065j"),
+    for key, value in (("plant.losses.device", "wolfspeed_c3m0065100j"),
                        ("plant.losses.machine", True)):  # fmt: skip
         with pytest.raises(ConfigError, match="plant.losses with plant.saturation"):
             run("pmsyrm_short", engine="inprocess", duration=0.001, settings={key: value})

@@ -34,7 +34,7 @@ from mcap.stream_reader import StreamReader
 
 from . import __version__, interrupts
 from .errors import BagError
-from .interface import BAG_TOPICS, TOPICS
+from .interface import BAG_TOPICS, TOPICS, bag_topics
 from .mcapio import MAGIC, ChunkWriter, MessageGroup
 from .outputs import unwritable
 from .schemas import message_definition, type_hash
@@ -230,10 +230,14 @@ class BagWriter:
         info: dict[str, Any],
         stamp: bool = True,
         claimed: bool = False,
+        losses: bool = False,
     ) -> None:
         """``info``: the ``predictive_drive`` metadata record; ``stamp`` adds the package version
         and the creation time (a repaired bag keeps the original's instead); ``claimed``: the
-        run this bag is written for holds the directory's claim (:func:`claim_bag_dir`)."""
+        run this bag is written for holds the directory's claim (:func:`claim_bag_dir`);
+        ``losses``: the run books its losses, and the bag has /drive/losses (else no such
+        channel)."""
+        self._topics = bag_topics(losses=losses)
         self.directory = check_new_bag(directory, claimed=claimed)
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
@@ -271,7 +275,7 @@ class BagWriter:
         #: rosbag2's custom_data: written into metadata.yaml and the rosbag2 record on close
         self.custom_data: dict[str, str] = {}
         schemas: dict[str, int] = {}  # one schema per type, as rosbag2 writes it
-        for key, topic in BAG_TOPICS.items():
+        for key, topic in self._topics.items():
             if topic.type not in schemas:
                 schemas[topic.type] = self._writer.register_schema(
                     topic.type, "ros2msg", message_definition(topic.type).encode()
@@ -477,7 +481,7 @@ class BagWriter:
                         },
                         "message_count": self._writer.counts[self._channels[key]],
                     }
-                    for key, t in BAG_TOPICS.items()
+                    for key, t in self._topics.items()
                 ],
                 "compression_format": "",
                 "compression_mode": "",
@@ -625,7 +629,8 @@ def repair_bag(bag: str | Path) -> RepairResult:
     try:
         w: BagWriter | None = None
         try:
-            with BagWriter(tmp, info=meta[META_NAME], stamp=False) as w:
+            losses = any(channel.topic == TOPICS["losses"].name for channel, _ in msgs)
+            with BagWriter(tmp, info=meta[META_NAME], stamp=False, losses=losses) as w:
                 for i in order:
                     channel, message = msgs[i]
                     if channel.topic in keys:

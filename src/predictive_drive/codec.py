@@ -24,7 +24,7 @@ import numpy as np
 from .core.commands import FORMS, PULSE_SLACK, CommandError, command_from
 from .core.signals import COMMAND_INDEX, Command
 from .errors import BagError
-from .interface import RECORD_TOPICS, TOPICS
+from .interface import LOSSES_TOPIC, RECORD_TOPICS, TOPICS
 
 __all__ = [
     "CODECS",
@@ -265,7 +265,8 @@ class MultiArrayCodec:
 
 #: the codec of every labelled record topic, by topic key
 CODECS: dict[str, MultiArrayCodec] = {
-    key: MultiArrayCodec(TOPICS[key].fields) for key in (*RECORD_TOPICS, "recorded", "metrics")
+    key: MultiArrayCodec(TOPICS[key].fields)
+    for key in (*RECORD_TOPICS, LOSSES_TOPIC, "recorded", "metrics")
 }
 
 

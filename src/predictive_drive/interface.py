@@ -8,10 +8,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .core.signals import Command, Reference, State
+from .core.signals import Command, Losses, Reference, State
 
 __all__ = [
     "BAG_TOPICS",
+    "LOSSES_TOPIC",
     "CLOCK_PERIOD",
     "LAUNCHER_NODE",
     "LOCKSTEP_QOS",
@@ -27,6 +28,7 @@ __all__ = [
     "TOPICS",
     "Qos",
     "Topic",
+    "bag_topics",
     "node_name",
 ]
 
@@ -121,6 +123,9 @@ TOPICS: dict[str, Topic] = {
         f"{NAMESPACE}/torque_reference", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Reference._fields
     ),
     "command": Topic(f"{NAMESPACE}/command", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Command._fields),
+    # the plant's losses and temperatures, one message a step beside the state: published and
+    # recorded only where plant.losses is on (a run without has no such topic)
+    "losses": Topic(f"{NAMESPACE}/losses", FLOAT64_MULTI_ARRAY, LOCKSTEP_QOS, Losses._fields),
     "joint_states": Topic(f"{NAMESPACE}/joint_states", "sensor_msgs/msg/JointState", TOOLS_QOS),
     "clock": Topic("/clock", "rosgraph_msgs/msg/Clock", TOOLS_QOS),
     "diagnostics": Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", TOOLS_QOS),
@@ -137,10 +142,21 @@ TOPICS: dict[str, Topic] = {
 }
 #: the plant's decimated tool topics (besides the per-step records)
 TOOL_TOPICS = ("clock", "joint_states")
-#: the topics a run's bag holds
+#: the topics a run's bag may hold
 BAG_TOPICS = {key: t for key, t in TOPICS.items() if t.recorded}
 #: record name (core.trace.RECORDS) → topic key, for the three per-step signal topics
 RECORD_TOPICS = {"state": "state", "reference": "reference", "command": "command"}
+#: the per-step topic a run has only where the plant books its losses (``plant.losses`` on),
+#: one message a step beside the state: a run without it has neither the topic nor its channel
+LOSSES_TOPIC = "losses"
+
+
+def bag_topics(*, losses: bool) -> dict[str, Topic]:
+    """The topics the bag of a run holds: every recorded one, /drive/losses only with
+    ``losses``."""
+    return {k: t for k, t in BAG_TOPICS.items() if losses or k != LOSSES_TOPIC}
+
+
 #: decimation of /clock and /drive/joint_states: one message every this many steps' worth of time
 CLOCK_PERIOD = 1e-3  #: s of simulated time (1 kHz)
 #: back-pressure: the plant runs at most this many steps ahead of what the recorder has written

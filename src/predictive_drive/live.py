@@ -18,7 +18,7 @@ from typing import Any
 
 from .dependencies import missing
 from .errors import ConfigError
-from .interface import BAG_TOPICS, RECORD_TOPICS, node_name
+from .interface import BAG_TOPICS, LOSSES_TOPIC, RECORD_TOPICS, node_name
 from .schemas import message_definition
 
 __all__ = ["DEFAULT_PORT", "LIVE_PERIOD", "STRATEGY_PARAMETER", "LiveView", "check_port"]
@@ -113,8 +113,9 @@ class LiveView:
 
     def offer(self, key: str, t_ns: int, data: bytes) -> None:
         """A message the recorder writes: forwarded if it is a tool topic or, for a per-step
-        topic, a step on the live period's grid."""
-        if key in RECORD_TOPICS and round(t_ns / self._ts_ns) % self._every:
+        topic (the plant's losses too), a step on the live period's grid."""
+        per_step = key in RECORD_TOPICS or key == LOSSES_TOPIC
+        if per_step and round(t_ns / self._ts_ns) % self._every:
             return
         channel = self._channels.get(key)
         if channel is None:

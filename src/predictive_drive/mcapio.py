@@ -373,18 +373,18 @@ class ChunkWriter:
 
 
 class MessageGroup:
-    """The messages of consecutive steps, each step three on channels of their own (a step's
-    state, reference and command) with a payload of a constant prefix (may be empty) then a fixed
-    number of bytes, and now and then other messages after one of a step's records (the plant's
-    tool messages). :meth:`add_steps` builds the records of many steps in one numpy array and hands
-    them to the writer as one block: the bytes are those :meth:`ChunkWriter.add` of each message
-    in turn writes, chunk boundaries included."""
+    """The messages of consecutive steps, each step three or four on channels of their own (a
+    step's state, reference and command, and the plant's losses) with a payload of a constant
+    prefix (may be empty) then a fixed number of bytes, and now and then other messages after
+    one of a step's records (the plant's tool messages). :meth:`add_steps` builds the records of
+    many steps in one numpy array and hands them to the writer as one block: the bytes are those
+    :meth:`ChunkWriter.add` of each message in turn writes, chunk boundaries included."""
 
     def __init__(
         self, writer: ChunkWriter, parts: Sequence[tuple[int, bytes, int]], extras_after: int = 0
     ) -> None:
-        if len(parts) != 3:
-            raise ValueError(f"a message group has three parts, not {len(parts)}")
+        if len(parts) not in (3, 4):
+            raise ValueError(f"a message group has three or four parts, not {len(parts)}")
         self._w = writer
         self._after = extras_after  #: the part of a step the extra messages follow
         self._channels = [ch for ch, _, _ in parts]

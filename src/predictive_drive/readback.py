@@ -1,4 +1,5 @@
-"""A recording read back: the :class:`~predictive_drive.core.trace.Trace` of its per-step topics,
+"""A recording read back: the :class:`~predictive_drive.core.trace.Trace` of its per-step topics
+(/drive/losses where the run had them),
 its ``predictive_drive`` metadata, the parameter changes it recorded, and what state the file is
 in (closed, or cut short by a killed writer)."""
 
@@ -20,12 +21,13 @@ from .codec import (
     MultiArrayCodec,
     ParameterEvent,
     decode_command,
+    decode_multiarray,
     decode_parameter_event,
 )
 from .core.signals import EXTERNAL, EXTERNAL_PREFIX, STATE_INDEX
-from .core.trace import Trace
+from .core.trace import Trace, no_losses
 from .errors import BagError
-from .interface import RECORD_TOPICS, TOPICS
+from .interface import LOSSES_TOPIC, RECORD_TOPICS, TOPICS
 from .mcapio import McapContents, Messages, read_file
 from .recording import OwnNode, own_nodes, scenario_of
 
@@ -105,31 +107,47 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
         return float(scenario_of(info, path).plant.u_dc)
 
     by_name = {TOPICS[key].name: rec for rec, key in RECORD_TOPICS.items()}
+    by_name[TOPICS[LOSSES_TOPIC].name] = "losses"
+    codecs = {
+        **{rec: CODECS[key] for rec, key in RECORD_TOPICS.items()},
+        "losses": CODECS[LOSSES_TOPIC],
+    }
     tables: dict[str, np.ndarray] = {}
     counts: dict[str, int] = {}
     events: list[tuple[int, ParameterEvent]] = []
     channels = sorted((m for m in contents.channels.values() if len(m)), key=lambda m: m.order[0])
+    states: list[Messages] = []
     for m in channels:
         topic = m.channel.topic
         counts[topic] = counts.get(topic, 0) + len(m)
         rec = by_name.get(topic)
+        if rec == "state":
+            states.append(m)
         if rec is not None:
             decode = partial(decode_command, u_dc=u_dc) if rec == "command" else None
-            tables[rec] = _by_step(
-                _values(contents, m, CODECS[RECORD_TOPICS[rec]], decode), tables.get(rec)
-            )
+            tables[rec] = _by_step(_values(contents, m, codecs[rec], decode), tables.get(rec))
         elif topic == TOPICS["parameter_events"].name:
             events += [
                 (int(m.log_times[i]), decode_parameter_event(contents.payload(m, i)))
                 for i in range(len(m))
             ]
-    # keep the longest prefix of whole steps: states and references 0..n, commands 0..n-1
+    if "losses" not in tables:
+        for m in states:  # a recording of the version that sent the losses in the state
+            if _legacy_losses(contents, m):
+                tables["losses"] = _by_step(
+                    _values(contents, m, codecs["losses"]), tables.get("losses")
+                )
+    # keep the longest prefix of whole steps: states and references 0..n, commands 0..n-1, and
+    # the losses 0..n of a run that booked them (a step is whole with its losses)
     empty = np.empty((0, 1))
     state, reference, command = (tables.get(r, empty) for r in ("state", "reference", "command"))
-    have = [~np.isnan(t[:, 0]) for t in (state, reference, command)]
-    whole = min(len(have[0]) - 1, len(have[1]) - 1, len(have[2]))
-    ok = have[0][:whole] & have[1][:whole] & have[2][:whole]
-    ok &= have[0][1 : whole + 1] & have[1][1 : whole + 1]
+    every = [state, reference, *(("losses" in tables) * [tables.get("losses", empty)])]
+    have = [~np.isnan(t[:, 0]) for t in every]
+    done = ~np.isnan(command[:, 0])
+    whole = min(*(len(h) - 1 for h in have), len(done))
+    ok = done[:whole]
+    for h in have:
+        ok = ok & h[:whole] & h[1 : whole + 1]
     n = int(np.argmin(ok)) if not ok.all() else max(whole, 0)
     if n == 0:
         raise BagError(f"{path}: the recording holds no complete step")
@@ -142,6 +160,7 @@ def read_bag(bag: str | Path) -> tuple[Trace, BagInfo]:
         np.ascontiguousarray(command[:n]),
         names,
         strategy if strategy.startswith(EXTERNAL_PREFIX) else EXTERNAL,
+        np.ascontiguousarray(tables["losses"][: n + 1]) if "losses" in tables else no_losses(),
     )
     custom = _custom_data(meta.get("rosbag2", {}))
     events.sort(key=lambda e: e[0])
@@ -165,6 +184,18 @@ def _values(
     one = decode or codec.decode
     rows = [one(contents.payload(m, i)) for i in range(len(m))]
     return np.array(rows, dtype=np.float64).reshape(len(m), width)
+
+
+def _legacy_losses(contents: McapContents, m: Messages) -> bool:
+    """The state messages of a recording made when the state carried the plant's losses
+    (``p_dc`` … ``t_rotor``, NaN without them): the losses are read from them, by label."""
+    if (m.lengths == CODECS["state"].size).all():
+        return False  # this version's state: no losses in it
+    labels, _ = decode_multiarray(contents.payload(m, 0))
+    if "p_dc" not in labels:
+        return False
+    last = dict(zip(labels, decode_multiarray(contents.payload(m, len(m) - 1))[1]))
+    return bool(np.isfinite(last.get("t_sink", np.nan)) or np.isfinite(last.get("p_dc", np.nan)))
 
 
 def _by_step(values: np.ndarray, into: np.ndarray | None) -> np.ndarray:

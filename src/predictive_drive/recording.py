@@ -1,6 +1,7 @@
 """What a run records, shared by the in-process engine and the metrics_logger node.
 
-Per step: state, reference and command; every :data:`~.interface.CLOCK_PERIOD` of simulated time
+Per step: state, reference and command, and the plant's losses where it books them; every
+:data:`~.interface.CLOCK_PERIOD` of simulated time
 the plant's ``/clock`` and ``/drive/joint_states``; every 0.1 s of simulated time (10 Hz)
 ``/diagnostics`` and ``/drive/metrics`` with the period's running metrics, and the run's outcome at
 its end. The plant node publishes the tool messages built by :func:`tool_messages`, so both engines
@@ -56,6 +57,7 @@ from .core.timebase import every_steps
 from .errors import BagError
 from .interface import (
     CLOCK_PERIOD,
+    LOSSES_TOPIC,
     RECORD_TOPICS,
     RECORDING_WINDOW,
     TOOL_TOPICS,
@@ -292,8 +294,8 @@ _STREAMS = ("state", "reference", "command", *TOOL_TOPICS)
 _ARRIVAL = (1, 0, 2)
 #: steps after which a record still waiting for its step's others is let go (a node's recorder)
 _UNPAIRED_HORIZON = 10 * RECORDING_WINDOW
-#: record name by topic key
-_RECORD_OF = {key: record for record, key in RECORD_TOPICS.items()}
+#: record name by topic key (the plant's losses a record of their own where a run has them)
+_RECORD_OF = {key: record for record, key in RECORD_TOPICS.items()} | {LOSSES_TOPIC: "losses"}
 
 
 class RunRecorder:
@@ -320,12 +322,14 @@ class RunRecorder:
         publish: Callable[[str, bytes], None] | None = None,
         live: Callable[[str, int, bytes], None] | None = None,
         external: str = EXTERNAL,
+        losses: bool = False,
     ) -> None:
         """``record_tools``: the in-process engine, where the recorder also writes what the
         plant and the controller node would publish: /clock, /drive/joint_states, and a
         parameter event when the strategy changes. ``live(topic_key, t_ns, data)``: a second
         sink that sees every message as it comes (the live view). ``external``: the name of a
-        controller of one's own (its commands carry no strategy index)."""
+        controller of one's own (its commands carry no strategy index). ``losses``: the plant
+        books its losses: /drive/losses comes every step (a step is whole with them)."""
         self.writer = writer
         self.external = external
         self.live = LiveMetrics(ts=ts, torque_limit=torque_limit)
@@ -337,22 +341,26 @@ class RunRecorder:
         self._publish = publish
         self._live = live
         self.last_t = 0.0
+        self._losses = losses
+        #: the per-step records, by name → topic key (the losses where the run has them)
+        self._records = {**RECORD_TOPICS, **({"losses": LOSSES_TOPIC} if losses else {})}
+        streams = (*_STREAMS, *((LOSSES_TOPIC,) if losses else ()))
         #: the last log time seen on each topic the recorder waits on (each comes in order);
         #: none in-process, whose records come in time order
-        self._seen = {} if record_tools else dict.fromkeys(_STREAMS, -1)
+        self._seen = {} if record_tools else dict.fromkeys(streams, -1)
         self._through_ns = -1  #: see _released
         #: node path: records taken whose step's others have not come yet, in order, and where
         #: each came in the batch that brought it (-1: a batch before)
         self._unpaired = {
             r: (np.empty((0, len(CODECS[key].fields))), np.empty(0, dtype=np.int64))
-            for r, key in RECORD_TOPICS.items()
+            for r, key in self._records.items()
         }
         #: node path: the last step taken of each record
-        self.last_k = {"state": -1, "reference": -1, "command": -1}
+        self.last_k = dict.fromkeys(self._records, -1)
         #: in-process: the last state written
         self._state_written = -1
         #: node path: the step of each record's last message taken (see _screen)
-        self._last_taken = {"state": -1.0, "reference": -1.0, "command": -1.0}
+        self._last_taken = dict.fromkeys(self._records, -1.0)
         #: node path: messages left out of the bag, by topic key, and what the first one was
         self.left_out: dict[str, int] = {}
         self.left_out_first = ""
@@ -366,44 +374,62 @@ class RunRecorder:
         self._widths = tuple(len(CODECS[key].fields) for key in keys)
         #: a step's records written as one group: in a node, the messages as received, in the
         #: order they come in (reference k comes before state k: the speed PI made it from state
-        #: k-1), the plant's tool messages after the state (see flush); in-process without a
-        #: live view, state, tool messages, reference, command, the packed rows after each
-        #: record's constant prefix (see record_rows); with a live view, message by message
+        #: k-1), the plant's tool messages and losses after the state (see flush); in-process
+        #: without a live view, state, losses, tool messages, reference, command, the packed
+        #: rows after each record's constant prefix (see record_rows); with a live view,
+        #: message by message
         self._group: MessageGroup | None = None
         if not record_tools:
             self._group = writer.group(
                 [(keys[p], b"", self._sizes[p]) for p in _ARRIVAL], extras_after=1
             )
         elif live is None:
+            inprocess = (keys[0], LOSSES_TOPIC, *keys[1:]) if losses else keys
             self._group = writer.group(
-                [(key, CODECS[key].prefix, 8 * len(CODECS[key].fields)) for key in keys]
+                [(key, CODECS[key].prefix, 8 * len(CODECS[key].fields)) for key in inprocess],
+                extras_after=1 if losses else 0,
             )
         self._tool_channels = {key: writer.channel(key) for key in TOOL_TOPICS}
         self._tool_channel_ids = np.array(list(self._tool_channels.values()))
         self._arrival_channels = [writer.channel(keys[p]) for p in _ARRIVAL]
         #: node path: the channel of each topic a node takes
-        self._channel_of = {key: writer.channel(key) for key in (*_STREAMS, "parameter_events")}
-        self._streams = [(key, self._channel_of[key]) for key in _STREAMS]
-        self._record_channel_ids = np.array([writer.channel(key) for key in keys])
+        self._channel_of = {key: writer.channel(key) for key in (*streams, "parameter_events")}
+        self._streams = [(key, self._channel_of[key]) for key in streams]
+        self._record_channel_ids = np.array([writer.channel(k) for k in self._records.values()])
+        #: node path: what may come between a step's state and its command, written with the
+        #: step's block (see flush): the plant's tool messages, and its losses
+        self._between_ids = np.array(
+            [*self._tool_channel_ids, *((writer.channel(LOSSES_TOPIC),) if losses else ())]
+        )
         self._prefix_state = CODECS[RECORD_TOPICS["state"]].prefix
         self._prefix_reference = CODECS[RECORD_TOPICS["reference"]].prefix
         self._prefix_command = CODECS[RECORD_TOPICS["command"]].prefix
+        self._prefix_losses = CODECS[LOSSES_TOPIC].prefix
+        self._losses_size = 8 * len(CODECS[LOSSES_TOPIC].fields)
 
-    def record_rows(self, states: bytes, references: bytes, commands: bytes) -> None:
+    def record_rows(
+        self, states: bytes, references: bytes, commands: bytes, losses: bytes = b""
+    ) -> None:
         """In-process path (a :data:`~.core.runner.Sink`): the rows of consecutive steps, packed
-        as the trace packs them; each step's state (with the plant's tool messages), reference
-        and command are written in that order, as the graph's recorder writes them, and the
-        run's final state and reference (no command) close it. The steps of one strategy go
-        out as one block, their running metrics summed at once; a step that starts a span, and
-        every step when a live view watches too, message by message."""
+        as the trace packs them; each step's state (with the plant's losses and tool
+        messages), reference and command are written in that order, as the graph's recorder
+        writes them, and the run's final state and reference (no command) close it. The steps
+        of one strategy go out as one block, their running metrics summed at once; a step that
+        starts a span, and every step when a live view watches too, message by message."""
         s, r, c = (
             np.frombuffer(rows, dtype="<f8").reshape(-1, width)
             for rows, width in zip((states, references, commands), self._widths)
         )
         steps = min(len(s), len(r))  # a run cut short may end between a step's records
+        if self._losses:
+            steps = min(steps, len(losses) // self._losses_size)
         commanded = min(steps, len(c))
+        # each record's rows, in the order a step writes them (the group's parts)
         views = [memoryview(rows) for rows in (states, references, commands)]
         sizes = [8 * width for width in self._widths]
+        if self._losses:
+            views.insert(1, memoryview(losses))
+            sizes.insert(1, self._losses_size)
         strategy = command_span_keys(c)
         i = 0
         while i < commanded:
@@ -422,23 +448,21 @@ class RunRecorder:
                 s[i:j], r[i:j], c[i:j], *(v[i * n : j * n] for v, n in zip(views, sizes))
             )
             i = j
-        if steps > commanded:  # the final state and reference
+        if steps > commanded:  # the final state and reference (and losses)
             i = commanded
-            self._write_step(
-                s[i],
-                r[i],
-                None,
-                views[0][i * sizes[0] : (i + 1) * sizes[0]],
-                views[1][i * sizes[1] : (i + 1) * sizes[1]],
-                b"",
-            )
+            last: list[Any] = [v[i * n : (i + 1) * n] for v, n in zip(views, sizes)]
+            last[-1] = b""  # no command
+            self._write_step(s[i], r[i], None, *last)
 
     def _write_plain_steps(
         self, s: np.ndarray, r: np.ndarray, c: np.ndarray, *payloads: Any
     ) -> None:
-        """Consecutive steps of one span: their records in one block (with the tool messages
-        after the states they come with), the running metrics of them all at once."""
+        """Consecutive steps of one span: their records in one block (with the losses and the
+        tool messages after the states they come with), the running metrics of them all at
+        once. ``payloads``: each record's rows, in the group's order."""
         ns = [np.rint(x[:, T] * 1e9).astype(np.int64) for x in (s, r, c)]
+        if self._losses:
+            ns.insert(1, ns[0])  # a step's losses at its state's time
         every = self._every
         extras = []
         for j in np.flatnonzero(s[:, K] % every == 0).tolist():
@@ -457,20 +481,19 @@ class RunRecorder:
         if snap is not None:
             self._diagnose(snap)
 
-    def _write_step(
-        self,
-        s: np.ndarray,
-        r: np.ndarray,
-        c: np.ndarray | None,
-        sb: Any,
-        rb: Any,
-        cb: Any,
-    ) -> None:
-        """One step, messages and running metrics (a new span, the last step, a live view)."""
+    def _write_step(self, s: np.ndarray, r: np.ndarray, c: np.ndarray | None, *rows: Any) -> None:
+        """One step, messages and running metrics (a new span, the last step, a live view);
+        ``rows``: the step's records packed, in the group's order (state, losses where the run
+        has them, reference, command)."""
+        sb, *rest = rows
+        lb = rest.pop(0) if self._losses else None
+        rb, cb = rest
         state, ref = tuple(s.tolist()), tuple(r.tolist())
         self._state_written = int(state[K])
         write = self._hold
         write("state", stamp_ns(state[T]), self._prefix_state + bytes(sb))
+        if lb is not None:
+            write(LOSSES_TOPIC, stamp_ns(state[T]), self._prefix_losses + bytes(lb))
         if self._tools and not int(state[K]) % self._every:
             for tkey, tns, data in tool_messages(state, self._every):
                 write(tkey, tns, data)
@@ -521,7 +544,7 @@ class RunRecorder:
         and names it, and every valid step is kept (the pairing by step relies on the order)."""
         rows: dict[str, np.ndarray] = {}
         bad: set[int] = set()
-        for record, key in RECORD_TOPICS.items():
+        for record, key in self._records.items():
             where = [i for i, (k, _) in enumerate(taken) if k == key]
             if not where:
                 continue
@@ -582,7 +605,7 @@ class RunRecorder:
         last_k = self.last_k
         for key, data in taken:
             record = _RECORD_OF.get(key)
-            if record is not None:
+            if record is not None and record in self._records:
                 row = _decode_or_nan(CODECS[key], data)  # screened: it decodes
                 t = row[T]
                 ns = round(t * 1e9)  # stamp_ns
@@ -593,7 +616,7 @@ class RunRecorder:
                     self.last_t = t
                 if record == "command":
                     self._span(int(row[K]), _row_key(row))
-                snap = live(record, row)
+                snap = live(record, row) if record != "losses" else None
                 if snap is not None:
                     self._diagnose(snap)
                 seen[key] = ns  # each topic comes in order: see _released
@@ -620,7 +643,7 @@ class RunRecorder:
         channels = np.fromiter(map(self._channel_of.__getitem__, keys), dtype=np.int64, count=n)
         ns = np.zeros(n, dtype=np.int64)  #: each message's log time (a parameter change: later)
         t_at = np.full(n, -math.inf)  #: each record's time
-        for record, key in RECORD_TOPICS.items():
+        for record, key in self._records.items():
             where = np.flatnonzero(channels == self._channel_of[key])
             if not len(where):
                 continue
@@ -678,32 +701,32 @@ class RunRecorder:
                 self._seen[key] = int(ns[start + hits[-1]])
 
     def _pair_steps(self) -> list[tuple[int, dict[str, float]]]:
-        """The steps whose state, reference and command have all come (paired by k, in the
-        order of k): their running metrics, a diagnostics period at a time. Returns each
-        period's snapshot with where its last step was completed in the batch (-1: before
-        it). A record whose step's others have not come within _UNPAIRED_HORIZON steps (one
-        went missing) is let go."""
-        (s, s_at), (r, r_at), (c, c_at) = (
-            self._unpaired[x] for x in ("state", "reference", "command")
-        )
-        if not (len(s) and len(r) and len(c)):
+        """The steps whose state, reference and command (and losses, where the run has them)
+        have all come (paired by k, in the order of k): their running metrics, a diagnostics
+        period at a time. Returns each period's snapshot with where its last step was
+        completed in the batch (-1: before it). A record whose step's others have not come
+        within _UNPAIRED_HORIZON steps (one went missing) is let go."""
+        records = [self._unpaired[x] for x in self._records]  # state, reference, command, ...
+        if not all(len(rows) for rows, _ in records):
             return []
-        ks = [x[:, K] for x in (s, r, c)]
+        ks = [rows[:, K] for rows, _ in records]
         # each topic's steps in a row from the same step on (as the graph delivers them): the
         # first ones of each are the steps complete
-        in_row = ks[0][0] == ks[1][0] == ks[2][0] and all(
+        in_row = all(k[0] == ks[0][0] for k in ks) and all(
             len(k) == 1 or bool((np.diff(k) == 1).all()) for k in ks
         )
         if in_row:
             common = ks[0][: min(len(k) for k in ks)]
-            picks = [np.arange(len(common))] * 3
+            picks = [np.arange(len(common))] * len(ks)
         else:
-            common = np.intersect1d(np.intersect1d(ks[0], ks[1]), ks[2])
+            common = ks[0]
+            for k in ks[1:]:
+                common = np.intersect1d(common, k)
             picks = [np.searchsorted(k, common) for k in ks]
         snaps: list[tuple[int, dict[str, float]]] = []
         if len(common):
-            paired = [x[p] for x, p in zip((s, r, c), picks)]
-            at = np.maximum.reduce([a[p] for a, p in zip((s_at, r_at, c_at), picks)])
+            paired = [rows[p] for (rows, _), p in zip(records[:3], picks)]
+            at = np.maximum.reduce([came[p] for (_, came), p in zip(records, picks)])
             i, m = 0, len(common)
             while i < m:
                 j = min(m, i + self.live.every - self.live.steps % self.live.every)
@@ -775,7 +798,7 @@ class RunRecorder:
             (channels == self._arrival_channels[p]) & (sizes == self._sizes[q])
             for p, q in enumerate(_ARRIVAL)
         )
-        tool = np.isin(channels, self._tool_channel_ids)
+        tool = np.isin(channels, self._between_ids)
         # the first message at or after each place that is not a tool message (n: none)
         after = np.minimum.accumulate(np.where(tool, n, np.arange(n))[::-1])[::-1]
         after = np.append(after, [n, n])
@@ -857,7 +880,9 @@ class RunRecorder:
         # the steps as `report` counts them: whole, their next state and reference in too (a
         # command the plant refused, the last one of a stopped run, had its three records but
         # never acted)
-        after = min(max(self.last_k[r], self._state_written) for r in ("state", "reference"))
+        after = min(
+            max(self.last_k[r], self._state_written) for r in self._records if r != "command"
+        )
         done = min(int(total["steps"]), max(after, 0))
         total["steps"] = float(done)
         total = {**total, "steps_planned": float(self.steps)}

@@ -24,6 +24,7 @@ from ..config import (
     scenario_with,
 )
 from ..core.control import strategy_names
+from ..core.losses_kernel import kernel_unavailable
 from ..core.metrics import compute_metrics
 from ..core.runner import run_inprocess
 from ..core.signals import EXTERNAL_PREFIX, external_name
@@ -228,7 +229,7 @@ def horizon_rate(
 LOSS_DRIVE: dict[str, Any] = {"plant.dead_time": 2e-6, "plant.device_drop": 1.5}
 LOSSES_ON: dict[str, Any] = {
     "plant.dead_time": 2e-6,
-    "plant.losses.device": "fuji_2mbi100xaa120_50",
+    "plant.losses.device": "semikron_skm150gb124d",
     "plant.losses.machine": True,
     "plant.losses.iron_hysteresis": 1.0,
     "plant.losses.iron_eddy": 0.01,
@@ -242,13 +243,15 @@ class LossRate:
     temperatures booked (``losses``), each the median of interleaved repeats; ``of_real``: the
     median of each losses run over the real-drive run right before it; ``of_core``: the losses
     runs' median over the call's core loop (the ideal drive, which takes no segment of a real
-    inverter)."""
+    inverter); ``booking``: how the ledger booked (``compiled``, numba's kernel, or ``python``,
+    the per-period reference: docs/physics.md#losses-and-temperature)."""
 
     steps: int
     real_steps_per_s: float
     losses_steps_per_s: float
     of_real: float
     of_core: float
+    booking: str = "python"
 
     def as_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -262,6 +265,8 @@ def loss_rate(steps: int, repeats: int, core: float) -> LossRate:
         load_scenario_text(apply_settings(text, s, path), path).with_strategy("db_mptc")
         for s in (LOSS_DRIVE, LOSSES_ON)
     )
+    for sc in (real, on):  # not timed: numba's kernels load once a process (about 0.4 s)
+        run_inprocess(sc, steps=200)
     pairs = [(_core_rate(real, steps), _core_rate(on, steps)) for _ in range(repeats)]
     return LossRate(
         steps,
@@ -269,6 +274,7 @@ def loss_rate(steps: int, repeats: int, core: float) -> LossRate:
         _median([b for _, b in pairs]),
         _median([b / a for a, b in pairs]),
         _median([b for _, b in pairs]) / core,
+        "python" if kernel_unavailable() else "compiled",
     )
 
 

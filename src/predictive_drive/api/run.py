@@ -110,7 +110,10 @@ def run_inprocess_to_bag(
         else None
     )
     try:
-        with BagWriter(out, info=bag_info(sc, "inprocess"), claimed=claimed) as writer:
+        losses = sc.plant.losses.on
+        with BagWriter(
+            out, info=bag_info(sc, "inprocess"), claimed=claimed, losses=losses
+        ) as writer:
             rec = RunRecorder(
                 writer,
                 ts=sc.ts,
@@ -119,11 +122,12 @@ def run_inprocess_to_bag(
                 strategy_names=names,
                 record_tools=True,
                 live=None if live is None else live.offer,
+                losses=losses,
             )
 
-            def record(states: bytes, references: bytes, commands: bytes) -> None:
+            def record(states: bytes, references: bytes, commands: bytes, lost: bytes) -> None:
                 with interrupts.held():  # a batch goes into the bag whole (see interrupts)
-                    rec.record_rows(states, references, commands)
+                    rec.record_rows(states, references, commands, lost)
 
             try:
                 trace = run_inprocess(sc, switches=switches, sinks=[record], progress=progress)

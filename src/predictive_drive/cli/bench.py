@@ -100,7 +100,8 @@ def main(a: argparse.Namespace) -> int:
             f"losses and temperatures (im_paper, db_mptc, 2 µs dead time, {lr.steps} steps): "
             f"{lr.losses_steps_per_s:,.0f} steps/s against {lr.real_steps_per_s:,.0f} with "
             f"constant device drops: {lr.of_real:.2f} of it (each run against the drops run "
-            f"before it, the median); {lr.of_core:.2f} of the ideal core loop"
+            f"before it, the median); {lr.of_core:.2f} of the ideal core loop; booked "
+            f"{lr.booking}"
         )
     for name, us in d.compute_us_per_step.items():
         print(f"controller compute {name:<8} {us:6.2f} µs/step (median)")

@@ -17,6 +17,11 @@ between them):
 - per period the iron losses (from the stator flux: not in the plant's equations), friction
   and the power into the load.
 
+Where numba is installed (the ``[fast]`` extra) the periods of a thermal step are booked at
+once, at its end, by a compiled kernel (:mod:`.losses_kernel`) that does the reference's
+arithmetic in its order; the rows of the periods are then ready when the step ends, or whenever
+they are asked for (:meth:`Ledger.flush`).
+
 Every ``thermal_step`` the mean losses advance the thermal networks (:mod:`.thermal`): a
 Foster network per die, a case-to-heatsink resistance per switch position, a heatsink node to
 the coolant; the machine's winding and rotor nodes. The new T_j set the devices' on-state
@@ -33,16 +38,24 @@ from typing import Any
 
 import numpy as np
 
-from .devices import Device, EnergyTable, Grid, Part, grid_value
+from .devices import Device, EnergyTable, Grid, Part, bracket, grid_value
 from .fields import check_fields, choice, flag, quantity
+from .losses_kernel import (
+    FIELDS,
+    PERIOD_WIDTH,
+    SEG_WIDTH,
+    SEG_WIDTH_FULL,
+    compiled_booking,
+    compiled_thermal,
+)
 from .signals import DEVICES, LOSS_FIELDS
 from .thermal import Cauer, Foster
 from .trace import Trace
 
-__all__ = ["LOSS_NAN", "Ledger", "LossParams", "Overheat", "overheats"]
+__all__ = ["Ledger", "LossParams", "Overheat", "overheats"]
 
-#: the state's loss fields of a plant without losses
-LOSS_NAN: tuple[float, ...] = (math.nan,) * len(LOSS_FIELDS)
+#: √3/2 as core.inverter.inverse_clarke has it (the same expression: the same double)
+_HALF_SQRT3 = 0.5 * math.sqrt(3.0)
 _N = len(DEVICES)  #: 12: per leg the upper transistor and diode, the lower transistor and diode
 _T_HI, _D_HI, _T_LO, _D_LO = range(4)  #: a device's place in its leg
 
@@ -114,7 +127,9 @@ class Ledger:
     """The losses of one plant (see the module's docstring). The plant reads the on-state lines
     :attr:`v0` and :attr:`r` (per device, at its T_j; a constant ``drop`` without a device
     file) for its leg voltages, hands :meth:`close` each period's segments at its end (one
-    call a period: the bookkeeping runs in one loop), and publishes :attr:`fields`."""
+    call a period), and takes the periods' rows with :meth:`take` (:attr:`fields`, the last
+    period's, after :meth:`flush`). ``compiled``: book with the kernel (None: where numba is
+    installed; False: the per-period reference in Python)."""
 
     def __init__(
         self,
@@ -127,6 +142,7 @@ class Ledger:
         heat: Callable[[float, float], tuple[float, float]],
         rotor: tuple[int, int, float, float] | None = None,
         torque: Callable[[tuple[Any, ...]], float] | None = None,
+        compiled: bool | None = None,
     ) -> None:
         """``heat(t_winding, t_rotor)``: sets the plant's parameters for these temperatures and
         returns its (R_s, R_r) (Ω). ``rotor``: a machine with rotor copper (an induction
@@ -206,8 +222,185 @@ class Ledger:
             )
             self._t_machine = (t0, t0)
         self._temperatures = (*self._tj, self._t_sink, *self._t_machine)
-        #: the state's loss fields (:data:`~.signals.LOSS_FIELDS`) of the last period
+        #: the losses' fields after k and t (:data:`~.signals.LOSS_FIELDS`) of the last period
         self.fields: tuple[float, ...] = ((0.0,) * (9 + _N)) + self._temperatures
+        #: the periods' rows not taken yet (fields tuples, or arrays of them), from step 0
+        self._rows: list[Any] = [self.fields]
+        self._book = None if compiled is False else compiled_booking()
+        if compiled and self._book is None:
+            raise RuntimeError("the compiled booking needs numba (predictive_drive[fast])")
+        if self._book is not None:
+            self._start_batches()
+
+    # -- the compiled booking ----------------------------------------------------------------
+    def _start_batches(self) -> None:
+        """The kernel's inputs: the periods since the last booking, each segment's and each
+        period's numbers (:mod:`.losses_kernel`); the state it carries from one to the next;
+        the rows it books, kept until taken (the first: step 0's)."""
+        self._buf = np.empty((1024, len(LOSS_FIELDS)))
+        self._buf[0] = self._rows.pop()
+        self._filled = 1
+        self._segs: list[float] = []
+        self._per: list[float] = []
+        #: where the plant puts each segment's numbers (see :mod:`.losses_kernel`)
+        self.capture = self._segs.extend
+        #: the plant's state the periods kept end at, as a segment's numbers (set by the plant)
+        self.tail: Callable[[], tuple[float, ...]] = lambda: (0.0,) * SEG_WIDTH_FULL
+        held = self._torque_of is not None
+        rotor = self._rotor_of
+        self._params = np.array([
+            self.ts, self.u_dc, self.r_s, self.r_r,
+            rotor[2] if rotor else 0.0, rotor[3] if rotor else 0.0, float(held),
+            self.params.iron_hysteresis if self._iron else 0.0,
+            self.params.iron_eddy if self._iron else 0.0, float(bool(self._tables)), _HALF_SQRT3,
+        ])  # fmt: skip
+        self._state = np.array([0.0, 0.0, 0.0, _D_LO, _D_LO + 4, _D_LO + 8])  # levels, devices
+        self._psi_prev = np.zeros(3)  #: the stator flux at the last period's end, and if any
+        self._acc_k = np.zeros(_N + 2)  #: _acc and the machine's heat, as the kernel adds them
+        self._lines = np.array((self.v0, self.r), dtype=float).T.copy()  #: v0, r a device
+        self._grids()
+        self._thermal = compiled_thermal() if self._foster is not None else None
+        if self._thermal is not None:
+            assert self._sink is not None
+            (phi,), (gamma,) = self._sink._phi, self._sink._gamma
+            #: the heatsink node: Φ, Γ, its rise, the coolant, case to heatsink, its temperature
+            self._sink_k = np.array([phi[0], gamma[0], 0.0, self._sink.coolant, self._r_cs, 0.0])
+            self._die_of = np.array(self._die, dtype=float)
+            self._tj_k = np.zeros(_N)
+            width = max(len(p.lines) for p in self._parts)
+            self._line_t, self._line_v0, self._line_r = (
+                np.full((_N, width), np.nan) for _ in "tvr"
+            )
+            for d, part in enumerate(self._parts):
+                for i, line in enumerate(part.lines):
+                    self._line_t[d, i], self._line_v0[d, i], self._line_r[d, i] = (
+                        line.t_j, line.v0, line.r,
+                    )  # fmt: skip
+            temps = self._grid.shape[2]
+            self._energy_t = np.full((_N, 2, temps), np.nan)
+            for d, (on, off, _, _) in enumerate(self._energy_tables):
+                for j, table in enumerate((on, off)):
+                    if table is not None:
+                        self._energy_t[d, j, : len(table.t_j)] = table.t_j
+
+    def _grids(self) -> None:
+        """The switching energies as the kernel reads them: every curve of every device once
+        (``_grid[d, j, n]``: device d's energy j at its n-th temperature), and at each thermal
+        step where each device's T_j falls between them (``_grid_info``, see
+        :func:`~.losses_kernel.book`)."""
+        tables = [(on, off) for on, off, _, _ in getattr(self, "_energy_tables", [])]
+        present = [t for pair in tables for t in pair if t is not None]
+        temps = max((len(t.t_j) for t in present), default=1)
+        size = max((len(t.values[0]) for t in present), default=2)
+        self._grid = np.zeros((_N, 2, temps, size))
+        self._grid_info = np.zeros((_N, 2, 6))
+        for d, pair in enumerate(tables):
+            for j, t in enumerate(pair):
+                if t is not None:
+                    self._grid[d, j, : len(t.t_j)] = t.values
+        # where each device's T_j falls between its curves (the thermal kernel moves it on)
+        for d, (on, off, scale_on, scale_off) in enumerate(getattr(self, "_energy_tables", [])):
+            for j, (table, scale) in enumerate(((on, scale_on), (off, scale_off))):
+                if table is not None:
+                    lo, hi, w = bracket(table.t_j, self._tj[d])
+                    self._grid_info[d, j] = (1.0 / table.step, w, scale, 1.0, lo, hi)
+
+    @property
+    def wants_flux(self) -> bool:
+        """The stator flux at each period's end is booked (the iron losses)."""
+        return self._iron
+
+    @property
+    def batched(self) -> bool:
+        """The kernel books the periods: the plant hands each segment to :attr:`capture` and
+        each period to :meth:`end_period` (else its trail to :meth:`close`)."""
+        return self._book is not None
+
+    def end_period(
+        self, segments: int, omega: tuple[float, float], turned: float, load: float,
+        friction: float, psi: complex,
+    ) -> None:  # fmt: skip
+        """A period of ``segments`` segments (each given to :attr:`capture`) ends: the speed at
+        its start and end, the shaft's angle over it, the load torque, the viscous coefficient,
+        the stator flux at its end (see :meth:`close`)."""
+        w0, w1 = omega
+        self._per.extend((segments, w0, w1, turned, load, friction, psi.real, psi.imag))
+        self._periods += 1
+        if self._periods == self.every:
+            self._book_batch(advance=True)
+
+    def _book_batch(self, *, advance: bool = False) -> None:
+        """Book the periods kept (then, with ``advance``, one thermal step)."""
+        if not self._per:
+            return
+        per = np.fromiter(self._per, float, len(self._per)).reshape(-1, PERIOD_WIDTH)
+        width = SEG_WIDTH if self._rotor_of is None and self._torque_of is None else SEG_WIDTH_FULL
+        segs = np.fromiter(self._segs, float, len(self._segs)).reshape(-1, width)
+        tail = np.fromiter(self.tail(), float, width)
+        del self._segs[:], self._per[:]  # in place: the plant holds capture
+        n, at = len(per), self._filled
+        if at + n > len(self._buf):  # the rows' room, grown as a run is long between takes
+            self._buf = np.concatenate([self._buf[:at], np.empty((at + n + 512, len(LOSS_FIELDS)))])
+        rows = self._buf[at : at + n]  # the kernel fills the powers
+        self._params[2], self._params[3] = self.r_s, self.r_r
+        assert self._book is not None
+        self._book(
+            segs, per, tail, self._grid, self._grid_info, self._lines, self._state,
+            self._psi_prev, self._params, rows, self._acc_k,
+        )  # fmt: skip
+        rows[:, FIELDS:] = self._temperatures
+        if advance:
+            self._advance_batched()
+            rows[-1, FIELDS:] = self._temperatures
+        self._filled = at + n
+
+    def _advance_batched(self) -> None:
+        """:meth:`_advance` of the sums the kernel made: the devices' networks, lines and
+        energies by the thermal kernel, the machine's as the reference does."""
+        acc = self._acc_k
+        if self._thermal is None:  # no device: the machine's only
+            self._acc = acc[:_N].tolist()
+            self._acc_cu_s, self._acc_cu_r = float(acc[_N]), float(acc[_N + 1])
+            self._advance()
+        else:
+            n = float(self._periods)
+            assert self._foster is not None and self._sink is not None
+            self._thermal(
+                acc, n, self._foster.decay, self._foster.gain, self._foster.rises, self._die_of,
+                self._sink_k, self._line_t, self._line_v0, self._line_r, self._energy_t,
+                self._grid_info, self._lines, self._tj_k,
+            )  # fmt: skip
+            self._tj = self._tj_k.tolist()
+            self.v0[:] = self._lines[:, 0].tolist()
+            self.r[:] = self._lines[:, 1].tolist()
+            self._t_sink = float(self._sink_k[5])
+            self._sink._rises = [float(self._sink_k[2])]
+            if self._machine is not None:
+                t = self._machine.advance([float(acc[_N]) / n, float(acc[_N + 1]) / n])
+                self._t_machine = (t[0], t[1])
+                self.r_s, self.r_r = self._heat(*self._t_machine)
+            self._temperatures = (*self._tj, self._t_sink, *self._t_machine)
+            self._periods = 0
+        acc[:] = 0.0
+
+    def flush(self) -> None:
+        """Book the periods kept so far (the thermal networks advance at their steps only), so
+        that :attr:`fields` and :meth:`take` hold every period closed."""
+        if self._book is not None:
+            self._book_batch()
+            if self._filled:
+                self.fields = tuple(self._buf[self._filled - 1].tolist())
+
+    def take(self) -> np.ndarray:
+        """The rows (:data:`~.signals.LOSS_FIELDS`) of the periods closed since the last take,
+        one a step from step 0 (its zeros and the starting temperatures)."""
+        self.flush()
+        if self._book is None:  # the reference's rows: a tuple a period
+            rows, self._rows = self._rows, []
+            return np.array(rows, dtype=float).reshape(-1, len(LOSS_FIELDS))
+        out = self._buf[: self._filled].copy()
+        self._filled = 0
+        return out
 
     def _die_part(self, die: int) -> Part:
         """The part whose Foster network die ``die`` has: with a shared die, die n is the
@@ -302,7 +495,8 @@ class Ledger:
             cross = before.real * psi.imag - before.imag * psi.real
             dot = before.real * psi.real + before.imag * psi.imag
             f = abs(math.atan2(cross, dot)) * inv / (2.0 * math.pi)  # the flux's frequency
-            p_fe = (p.iron_hysteresis * f + p.iron_eddy * f * f) * (abs(before) + abs(psi)) ** 2 / 4
+            m = abs(before) + abs(psi)  # squared as m·m: the kernel's (C's pow(m, 2) may differ)
+            p_fe = (p.iron_hysteresis * f + p.iron_eddy * f * f) * (m * m) / 4
         cu_s = 0.5 * self.r_s * e_cu * inv
         cu_r = 0.5 * self.r_r * e_cur * inv
         e_cond, e_sw = e, self._e_sw
@@ -328,6 +522,7 @@ class Ledger:
             *per_device,
             *self._temperatures,
         )
+        self._rows.append(self.fields)
 
     def _commutate(self, leg: int, old: int, new: int, current: float) -> None:
         """Leg ``leg`` changes level with ``current`` flowing out of it: E_off of a transistor
@@ -381,11 +576,11 @@ class Overheat:
 def overheats(trace: Trace, device: Device | None) -> list[Overheat]:
     """The devices of a run whose junction temperature exceeded the device file's rating, in
     the order they first did (none without losses or a device)."""
-    if device is None:
+    if device is None or not trace.has_losses:
         return []
     out = []
     for name in DEVICES:
-        tj = trace.col("state", f"tj_{name}")
+        tj = trace.col("losses", f"tj_{name}")
         rated = (device.switch if name.startswith("t") else device.diode).t_j_max
         over = np.flatnonzero(tj > rated)
         if len(over):

@@ -600,15 +600,15 @@ def compute_metrics(
 
 
 def loss_figures(trace: Trace, k0: int, k1: int) -> dict[str, Any]:
-    """The losses and temperatures of periods k0..k1-1 (the state's loss fields; state k+1
+    """The losses and temperatures of periods k0..k1-1 (the run's losses record; its row k+1
     holds period k's powers): their means, the efficiency from the energies, the hottest
     junction and winding; {} for a run without them."""
-    p_dc = trace.col("state", "p_dc")[k0 + 1 : k1 + 1]
-    if not np.isfinite(p_dc).any():
+    if not trace.has_losses:
         return {}
+    p_dc = trace.col("losses", "p_dc")[k0 + 1 : k1 + 1]
 
     def mean(field: str) -> float:
-        return float(np.mean(trace.col("state", field)[k0 + 1 : k1 + 1]))
+        return float(np.mean(trace.col("losses", field)[k0 + 1 : k1 + 1]))
 
     out: dict[str, Any] = {f: mean(f) for f in ("p_cond_t", "p_cond_d", "p_sw_t", "p_sw_d",
                                                 "p_copper", "p_iron", "p_friction")}  # fmt: skip
@@ -621,13 +621,13 @@ def loss_figures(trace: Trace, k0: int, k1: int) -> dict[str, Any]:
         out["efficiency"] = p_out / p_in
     elif p_in < 0.0 and p_out < 0.0:
         out["efficiency"] = p_in / p_out
-    tj = np.column_stack([trace.col("state", f"tj_{d}")[k0:k1] for d in DEVICES])
+    tj = np.column_stack([trace.col("losses", f"tj_{d}")[k0:k1] for d in DEVICES])
     if np.isfinite(tj).any():
         k, d = np.unravel_index(int(np.nanargmax(tj)), tj.shape)
         out["tj_max"] = float(tj[k, d])
         out["tj_max_t"] = (k0 + int(k)) * trace.ts
         out["tj_max_device"] = DEVICES[int(d)]
-    winding = trace.col("state", "t_winding")[k0:k1]
+    winding = trace.col("losses", "t_winding")[k0:k1]
     if np.isfinite(winding).any():
         out["t_winding_max"] = float(np.nanmax(winding))
     return out

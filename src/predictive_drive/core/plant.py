@@ -31,14 +31,16 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import numpy as np
+
 from .devices import Device
 from .inverter import clarke, inverse_clarke, segments
-from .losses import LOSS_NAN, Ledger, LossParams
+from .losses import Ledger, LossParams
 from .machines import Machine
 from .machines.induction import IM_STATE, InductionCoefficients, InductionMotor, induction_exact
 from .machines.pmsm import PMSM, PMSM_STATE, PMSMCoefficients, pmsm_rk4
 from .sensors import Sensors
-from .signals import COMMAND_INDEX, PULSES, PhasePulses, State, new_record
+from .signals import COMMAND_INDEX, PULSES, Losses, PhasePulses, State, new_record
 from .thermal import COPPER_ALPHA, resistance_at
 from .timebase import StepProfile
 
@@ -119,6 +121,8 @@ class InverterPlant:
     """
 
     coefficients: Any  #: class with ``of(motor)``: the machine's precomputed constants
+    #: the motor's parameters as its coefficients read them, taken once (see ``_heat``)
+    _cold: dict[str, Any] | None = None
     x0: tuple[Any, ...]  #: initial state
     speed_index: int  #: where ω_m is in the state
     angle_index: int  #: where θ_m is in the state
@@ -178,10 +182,18 @@ class InverterPlant:
         #: each device's on-state voltage v0 + r·|i| (V, Ω; per :data:`~.signals.DEVICES`), and
         #: whether a transistor conducts reverse current while on (a MOSFET's channel)
         on = self._ledger
+        if on is not None and on.batched:
+            on.tail = self._tail
         self._v0 = on.v0 if on is not None else [device_drop] * 12
         self._r = on.r if on is not None else [0.0] * 12
         self._reverse = on is not None and on.reverse
         self._real_inverter = dead_time > 0.0 or device_drop > 0.0 or on is not None
+        rotor = self._rotor()
+        #: what the ledger's kernel takes of a segment's state besides its currents: where the
+        #: state holds an induction motor's stator flux, whether the torque is wanted (a load
+        #: machine holds the speed); and whether the stator flux at a period's end is (iron)
+        self._seg_extras = (rotor[0] if rotor is not None else None, self._held is not None)
+        self._psi_wanted = on is not None and on.wants_flux
         self._carry = [0.0, 0.0, 0.0]  #: dead time of each leg running on into this period
         self.sensors = sensors
         #: the period means the state publishes (:data:`PERIOD_MEANS`): NaN unless
@@ -340,9 +352,29 @@ class InverterPlant:
                 w,
                 the,
                 *self._avg,
-                *(LOSS_NAN if self._ledger is None else self._ledger.fields),
             ),
         )
+
+    def losses(self) -> Losses | None:
+        """The present step's losses and temperatures (the period that ended at k, the
+        temperatures at k); None where the plant books none (``plant.losses`` off)."""
+        if self._ledger is None:
+            return None
+        self._ledger.flush()
+        return new_record(Losses, (float(self.k), self.k * self.ts, *self._ledger.fields))
+
+    def take_losses(self) -> np.ndarray:
+        """The :class:`Losses` rows of the steps since the last take, up to the present one
+        (from step 0; no rows where the plant books none): what the engines record, a batch at a
+        time (the ledger's kernel books a thermal step's periods at once)."""
+        if self._ledger is None:
+            return np.empty((0, len(Losses._fields)))
+        fields = self._ledger.take()
+        out = np.empty((len(fields), len(Losses._fields)))
+        out[:, 0] = np.arange(self.k + 1 - len(fields), self.k + 1)
+        np.multiply(out[:, 0], self.ts, out=out[:, 1])
+        out[:, 2:] = fields
+        return out
 
     def step(self, command: Sequence[float]) -> State:
         """Apply ``command`` (a :class:`Command`, or its row of numbers) for one period."""
@@ -410,7 +442,10 @@ class InverterPlant:
         ts, u_dc = self.ts, self.u_dc
         v0, slope, reverse = self._v0, self._r, self._reverse
         ledger = self._ledger
-        trail: list[tuple[Any, ...]] = []  # the segments, for the ledger
+        trail: list[tuple[Any, ...]] = []  # the segments, for the ledger's reference
+        # the segments' numbers, for the ledger's kernel (losses_kernel: SEG_WIDTH a segment)
+        capture = ledger.capture if ledger is not None and ledger.batched else None
+        k_psi, held = self._seg_extras
         load = self.load
         x = x_start = self.x
         points = sorted(cuts)
@@ -439,16 +474,45 @@ class InverterPlant:
                 highs.append(high)
                 devs.append(dev)
                 drops.append(drop)
-            if ledger is not None:
+            if capture is not None:
+                d0, d1, d2 = devs
+                if k_psi is None and not held:
+                    capture(((t1 - t0) * ts, i_ab.real, i_ab.imag, d0 + 16 * d1 + 256 * d2))
+                else:
+                    ps = x[k_psi] if k_psi is not None else 0j
+                    capture((
+                        (t1 - t0) * ts, i_ab.real, i_ab.imag, d0 + 16 * d1 + 256 * d2, ps.real,
+                        ps.imag, self._torque(x) if held else 0.0,
+                    ))  # fmt: skip
+            elif ledger is not None:
                 trail.append(((t1 - t0) * ts, x, i_ab, currents, highs, devs, drops))
             x = self._advance(x, (clarke(*legs), load), (t1 - t0) * ts)
         self.x = x
         if self._means:
             self._close_period()
-        if ledger is not None:
+        if capture is not None:
+            w, th = self.speed_index, self.angle_index
+            psi = self._flux_ab(x) if k_psi is not None or self._psi_wanted else 0j
+            ledger.end_period(  # type: ignore[union-attr]
+                len(points) - 1, (x_start[w], x[w]), x[th] - x_start[th], load, self._coef.b,
+                psi,
+            )  # fmt: skip
+        elif ledger is not None:
             self._close_ledger(ledger, trail, x_start, x)
         self._next_period()
         return self.state()
+
+    def _tail(self) -> tuple[float, ...]:
+        """The present state as the ledger's kernel reads a segment's start (see
+        :mod:`.losses_kernel`): where the last period's last segment ends."""
+        x = self.x
+        i_ab = self._i_ab(x)
+        k_psi, held = self._seg_extras
+        if k_psi is None and not held:
+            return (0.0, i_ab.real, i_ab.imag, 0.0)
+        ps = x[k_psi] if k_psi is not None else 0j
+        te = self._torque(x) if held else 0.0
+        return (0.0, i_ab.real, i_ab.imag, 0.0, ps.real, ps.imag, te)
 
     def _close_ledger(
         self, ledger: Ledger, trail: list[tuple[Any, ...]], x0: tuple[Any, ...], x: tuple[Any, ...]
@@ -479,7 +543,11 @@ class InductionPlant(InverterPlant):
         t_ref = p.motor_temperature
         r_s = resistance_at(m.r_s, t_winding, t_ref, COPPER_ALPHA)
         r_r = resistance_at(m.r_r, t_rotor, t_ref, p.cage_alpha)
-        self._coef = self._coefficients(_Hot(vars(m), sigma=m.sigma, r_s=r_s, r_r=r_r))
+        if self._cold is None:
+            self._cold = dict(vars(m), sigma=m.sigma)
+        hot = _Hot(self._cold)
+        hot["r_s"], hot["r_r"] = r_s, r_r
+        self._coef = self._coefficients(hot)
         return r_s, r_r
 
     def _rotor(self) -> tuple[int, int, float, float] | None:
@@ -526,7 +594,11 @@ class PMSMPlant(InverterPlant):
         t_ref = p.motor_temperature
         r_s = resistance_at(m.r_s, t_winding, t_ref, COPPER_ALPHA)
         psi_f = resistance_at(m.psi_f, t_rotor, t_ref, p.magnet_alpha)
-        self._coef = self._coefficients(_Hot(vars(m), r_s=r_s, psi_f=psi_f))
+        if self._cold is None:
+            self._cold = dict(vars(m))
+        hot = _Hot(self._cold)
+        hot["r_s"], hot["psi_f"] = r_s, psi_f
+        self._coef = self._coefficients(hot)
         return r_s, 0.0
 
     def _flux_ab(self, x: tuple[Any, ...]) -> complex:

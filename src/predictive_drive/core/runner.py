@@ -34,10 +34,11 @@ __all__ = [
 ]
 
 #: called with the rows of consecutive steps as the trace packs them (little-endian doubles, one
-#: row per step): states, references, commands. The last call of a run also brings its final
-#: state and reference, which have no command (one row fewer). A run stopped by an exception
-#: hands over the steps it completed before the exception goes on.
-Sink = Callable[[bytes, bytes, bytes], None]
+#: row per step): states, references, commands, and the plant's losses (b"" where it books
+#: none). The last call of a run also brings its final state, reference and losses, which have
+#: no command (one row fewer). A run stopped by an exception hands over the steps it completed
+#: before the exception goes on.
+Sink = Callable[[bytes, bytes, bytes, bytes], None]
 #: steps handed to the sinks at once: 25.6 ms of a 20 kHz run (the sink's work then runs on
 #: arrays, a few numpy calls for hundreds of steps)
 SINK_BATCH = 512
@@ -133,23 +134,30 @@ def run_inprocess(
     (s_add, s_pack), (r_add, r_pack), (c_add, c_pack) = (
         builder.packer(r) for r in ("state", "reference", "command")
     )
+    #: the plant's losses, taken a batch of steps at a time (none: it books none)
+    lossy = plant.losses() is not None
+    l_add = builder.buffers["losses"].extend
     pending = sorted(switches)
     next_switch = pending[0][0] if pending else n
     state = plant.state()
     immediate = pi.immediate  # T* from state k applies at k (else at k+1: see SpeedPI)
     ref = pi.step(state) if immediate else pi.initial()
     every = max(1, n // 200)
-    buffers = [builder.buffers[r] for r in ("state", "reference", "command")]
-    handed = [0, 0, 0]  #: bytes of each buffer the sinks have had
+    buffers = [builder.buffers[r] for r in ("state", "reference", "command", "losses")]
+    handed = [0, 0, 0, 0]  #: bytes of each buffer the sinks have had
 
     def hand_over() -> None:
+        if lossy:  # the losses up to the last state added
+            l_add(plant.take_losses().astype("<f8", copy=False).tobytes())
+        if not sinks:
+            return
         rows = [bytes(b[h:]) for b, h in zip(buffers, handed)]
         for i, b in enumerate(buffers):
             handed[i] = len(b)
         for s in sinks:
             s(*rows)
 
-    due = SINK_BATCH if sinks else n + 1  #: the step after which the sinks have the next rows
+    due = SINK_BATCH if sinks or lossy else n + 1  #: the step after which the rows go on
     try:
         for k in range(n):
             if k >= next_switch:
@@ -174,8 +182,7 @@ def run_inprocess(
         s_add(s_pack(*state))
         r_add(r_pack(*ref))
     finally:  # what was completed reaches the sinks however the run ends
-        if sinks:
-            hand_over()
+        hand_over()
     if progress is not None:
         progress(n)
     return builder.build()

@@ -1,11 +1,13 @@
-"""The three per-step signal records exchanged by the components and the ROS topics: the one owner
-of their layouts.
+"""The per-step signal records exchanged by the components and the ROS topics: the one owner of
+their layouts (state, reference and command every step; the plant's losses beside the state where
+they are on).
 
 Field order here *is* the wire order: :mod:`predictive_drive.interface` serialises these tuples as
 labelled ``std_msgs/Float64MultiArray`` with exactly these labels. Add a field here and it is added
 everywhere (topics, recordings, reports). Code that holds a record as a plain row of numbers reads
-it by name through the index records :data:`STATE_INDEX`, :data:`REFERENCE_INDEX` and
-:data:`COMMAND_INDEX` (``row[STATE_INDEX.torque]``), never by a bare position.
+it by name through the index records :data:`STATE_INDEX`, :data:`REFERENCE_INDEX`,
+:data:`COMMAND_INDEX` and :data:`LOSSES_INDEX` (``row[STATE_INDEX.torque]``), never by a bare
+position.
 """
 
 from __future__ import annotations
@@ -26,11 +28,13 @@ __all__ = [
     "DEVICES",
     "EXTERNAL",
     "EXTERNAL_PREFIX",
+    "LOSSES_INDEX",
     "LOSS_FIELDS",
     "PULSES",
     "REFERENCE_INDEX",
     "STATE_INDEX",
     "Command",
+    "Losses",
     "PhasePulses",
     "Reference",
     "State",
@@ -77,8 +81,17 @@ class State(NamedTuple):
     #: synchronous machine's fundamental stands still (an induction motor's turns at the slip)
     i_d_avg: float
     i_q_avg: float
-    # losses and temperatures (docs/physics.md#losses-and-temperature; NaN unless the plant's
-    # losses are on): power means over the period that ended at k (W), temperatures at k (°C)
+
+
+class Losses(NamedTuple):
+    """The plant's losses and temperatures at sample k (docs/physics.md#losses-and-temperature),
+    published beside the state only where the plant's losses are on (``plant.losses``): power
+    means over the period that ended at k (W; at k = 0 zero), temperatures at k (°C; NaN for a
+    node the run has not: the devices' without a device file, the machine's without its
+    losses)."""
+
+    k: float  #: step index
+    t: float  #: simulated time, s
     p_dc: float  #: DC-link power u_dc·i_dc of the plant's equations (switching, iron not in it)
     p_shaft: float  #: power into the load (T_L·ω_m; T_e·ω_m where a load machine holds ω_m)
     p_copper: float  #: stator (and rotor) copper losses, R(T)·i²
@@ -246,14 +259,15 @@ class Command(NamedTuple):
 #: index of each field in a row of the record: ``row[STATE_INDEX.torque]`` (a record of the field
 #: positions; typed Any because its values are ints where the record's are floats)
 STATE_INDEX: Any = State(*range(len(State._fields)))
+LOSSES_INDEX: Any = Losses(*range(len(Losses._fields)))
 REFERENCE_INDEX: Any = Reference(*range(len(Reference._fields)))
 COMMAND_INDEX: Any = Command(*range(len(Command._fields)))
 #: the devices of the inverter, in the order the state lists their losses and temperatures
 DEVICES: tuple[str, ...] = tuple(
-    name[2:] for name in State._fields if name.startswith("p_") and name.endswith(("_hi", "_lo"))
+    name[2:] for name in Losses._fields if name.startswith("p_") and name.endswith(("_hi", "_lo"))
 )
-#: the state's fields of losses and temperatures, from ``p_dc`` on
-LOSS_FIELDS: tuple[str, ...] = State._fields[STATE_INDEX.p_dc :]
+#: the losses' fields after the step and the time, from ``p_dc`` on
+LOSS_FIELDS: tuple[str, ...] = Losses._fields[LOSSES_INDEX.p_dc :]
 #: the command's pulses, a :class:`PhasePulses`: ``row[PULSES]``
 PULSES: slice = slice(COMMAND_INDEX.delay_a, COMMAND_INDEX.duty_c + 1)
 #: the fields a controller reports about its decision, between ``strategy`` and ``compute_ns``

@@ -1,31 +1,35 @@
-"""A run as columns: the state, reference and command records of every step, in step order.
+"""A run as columns: the state, reference and command records of every step, in step order, and
+the plant's losses where it booked them.
 
 Both engines and the bag reader produce a :class:`Trace`; the metrics read only this.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from .signals import EXTERNAL, Command, Reference, State
+from .signals import EXTERNAL, Command, Losses, Reference, State
 
-__all__ = ["RECORDS", "Trace", "TraceBuilder"]
+__all__ = ["RECORDS", "Trace", "TraceBuilder", "no_losses"]
 
 #: record name → its fields, in wire order
 RECORDS: dict[str, tuple[str, ...]] = {
     "state": State._fields,
     "reference": Reference._fields,
     "command": Command._fields,
+    "losses": Losses._fields,
 }
 
 
 @dataclass
 class Trace:
-    """Rows indexed by step k: states 0..n, references 0..n, commands 0..n-1."""
+    """Rows indexed by step k: states 0..n, references 0..n, commands 0..n-1; the plant's losses
+    0..n where it booked them (none: no rows)."""
 
     ts: float
     state: np.ndarray
@@ -34,11 +38,17 @@ class Trace:
     strategy_names: tuple[str, ...] = ()
     #: the name of the strategy of commands without an index: a controller of one's own
     external: str = EXTERNAL
+    losses: np.ndarray = dataclasses.field(default_factory=lambda: no_losses())
 
     def col(self, record: str, name: str) -> np.ndarray:
-        """The column of field ``name`` of ``record`` (state, reference or command)."""
+        """The column of field ``name`` of ``record`` (state, reference, command or losses)."""
         rows: np.ndarray = getattr(self, record)
         return rows[:, RECORDS[record].index(name)]
+
+    @property
+    def has_losses(self) -> bool:
+        """The run booked its losses and temperatures (``plant.losses`` on)."""
+        return len(self.losses) > 0
 
     def truth(self, name: str) -> np.ndarray:
         """The true value of a measured state field (``i_alpha``, ``i_beta``, ``omega_m``,
@@ -50,6 +60,11 @@ class Trace:
     @property
     def steps(self) -> int:
         return int(self.command.shape[0])
+
+
+def no_losses() -> np.ndarray:
+    """The losses of a run that booked none: no rows."""
+    return np.empty((0, len(Losses._fields)))
 
 
 class TraceBuilder:
@@ -83,5 +98,10 @@ class TraceBuilder:
                 raise ValueError(f"{name} records are not contiguous from step 0")
             arrays[name] = arr
         return Trace(
-            self.ts, arrays["state"], arrays["reference"], arrays["command"], self.strategy_names
+            self.ts,
+            arrays["state"],
+            arrays["reference"],
+            arrays["command"],
+            self.strategy_names,
+            losses=arrays["losses"],
         )

@@ -185,12 +185,12 @@ def run_figures(run: Run) -> dict[str, Any]:
         dx.legend()
         fig.tight_layout()
         figs["foc"] = fig
-    if np.isfinite(tr.col("state", "p_dc")).any():
+    if tr.has_losses:
         figs["losses"] = losses_figure(run)
     return figs
 
 
-#: the state's loss fields a losses figure draws, by label
+#: the loss fields a losses figure draws, by label
 LOSS_LINES = {
     "conduction, transistors": "p_cond_t",
     "conduction, diodes": "p_cond_d",
@@ -208,11 +208,11 @@ def losses_figure(run: Run) -> Any:
     losses come in bursts), and every junction, the heatsink, the winding and the rotor."""
     plt = _pyplot()
     tr, sc = run.trace, run.scenario
-    t = _time(tr, "state")
+    t = tr.col("losses", "t")
     m = max(1, round(sc.plant.losses.thermal_step / tr.ts))
     fig, (ax, tx) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for label, field in LOSS_LINES.items():
-        p = tr.col("state", field)[1:]
+        p = tr.col("losses", field)[1:]
         if not np.any(p):
             continue
         mean = np.convolve(p, np.ones(m) / m, mode="valid")
@@ -220,11 +220,11 @@ def losses_figure(run: Run) -> Any:
     ax.set(ylabel="P / W", title=f"{run.label}: losses, means over {m} periods")
     ax.legend(fontsize="small", ncol=2)
     for name in DEVICES:
-        tj = tr.col("state", f"tj_{name}")
+        tj = tr.col("losses", f"tj_{name}")
         if np.isfinite(tj).any():
             tx.plot(t, tj, linewidth=0.6, label=f"T_j {name}")
     for field, label in (("t_sink", "heatsink"), ("t_winding", "winding"), ("t_rotor", "rotor")):
-        temp = tr.col("state", field)
+        temp = tr.col("losses", field)
         if np.isfinite(temp).any():
             tx.plot(t, temp, linewidth=1.2, linestyle="--", label=label)
     tx.set(xlabel="t / s", ylabel="T / °C", title="temperatures")

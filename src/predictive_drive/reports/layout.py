@@ -43,12 +43,13 @@ PLOTS: dict[str, list[tuple[str, str]]] = {
         ("command", "vector"),
         ("command", "current_angle"),
     ],
-    # a run with plant.losses (docs/physics.md#losses-and-temperature); empty without
+    # /drive/losses: a run with plant.losses (docs/physics.md#losses-and-temperature); empty
+    # without
     "temperatures (°C): junctions, heatsink, winding, rotor": [
-        *(("state", f"tj_{name}") for name in DEVICES),
-        ("state", "t_sink"),
-        ("state", "t_winding"),
-        ("state", "t_rotor"),
+        *(("losses", f"tj_{name}") for name in DEVICES),
+        ("losses", "t_sink"),
+        ("losses", "t_winding"),
+        ("losses", "t_rotor"),
     ],
 }
 

@@ -19,7 +19,7 @@ from ..config import load_scenario
 from ..core.control import strategy_names
 from ..core.fields import choice, quantity
 from ..errors import BagError, ConfigError
-from ..interface import NODES, RECORD_TOPICS, RECORDED_EVERY, TOPICS, node_name
+from ..interface import LOSSES_TOPIC, NODES, RECORD_TOPICS, RECORDED_EVERY, TOPICS, node_name
 from ..live import LiveView
 from ..recording import RunRecorder, bag_info, default_bag_dir, tool_every
 from .node_base import FINISH_TIMEOUT, WatchedNode, run_main
@@ -94,7 +94,9 @@ class MetricsLoggerNode(WatchedNode):
             # run by the project's launcher, which holds the directory's claim for the run
             claimed = launcher_pid() != 0
             info = bag_info(sc, extra.engine, commands, label=extra.label or None)
-            self.writer = BagWriter(out, info=info, claimed=claimed)
+            #: the plant books its losses: /drive/losses is recorded, a step whole with them
+            self.losses = sc.plant.losses.on
+            self.writer = BagWriter(out, info=info, claimed=claimed, losses=self.losses)
         except BaseException:
             if self.live is not None:
                 self.live.close()
@@ -117,6 +119,7 @@ class MetricsLoggerNode(WatchedNode):
             publish=self._publish_tool,
             live=None if self.live is None else self.live.offer,
             external=sc.own_name,
+            losses=self.losses,
         )
         ticks = self.n // tool_every(run.ts) + 1
         #: messages taken, by topic; written (and counted in the bag) in batches
@@ -129,6 +132,8 @@ class MetricsLoggerNode(WatchedNode):
             "clock": ticks,
             "joint_states": ticks,
         }
+        if self.losses:
+            self._counts[LOSSES_TOPIC], self._need[LOSSES_TOPIC] = 0, self.n + 1
         self._left = sum(self._need.values())  #: messages still to come
         #: at the last batch written: the messages still to come, and the records taken
         self._noted = (self._left, 0)
@@ -137,8 +142,9 @@ class MetricsLoggerNode(WatchedNode):
             self.subscription(key, functools.partial(self.on_tool, key))
             for key in ("clock", "joint_states")
         ] + [
-            self.subscription(rec, functools.partial(self.on_record, rec))
-            for rec in ("state", "reference", "command")
+            # the losses before the state: the plant starts once it sees the state's
+            self.subscription(key, functools.partial(self.on_record, key))
+            for key in ((LOSSES_TOPIC,) if self.losses else ()) + ("state", "reference", "command")
         ]
         # rclpy publishes parameter events over DDS, never through a LocalBus
         self._drive_nodes = {node_name(n) for n in NODES}
@@ -187,10 +193,11 @@ class MetricsLoggerNode(WatchedNode):
             f"(state {self._counts['state']}/{self._need['state']})"
         )
 
-    def on_record(self, rec: str, data: bytes) -> None:
+    def on_record(self, key: str, data: bytes) -> None:
+        """A per-step record: a state, reference or command, or the plant's losses."""
         if not self._started:  # start-up lasts until command 0 is applied: until state 1 comes
-            self.progressed(started=rec == "state" and CODECS["state"].decode(data)[0] > 0)
-        self._take(RECORD_TOPICS[rec], data)
+            self.progressed(started=key == "state" and CODECS["state"].decode(data)[0] > 0)
+        self._take(key, data)
 
     def _take(self, key: str, data: bytes) -> None:
         """A message to record: taken now, written with the ones before it once
@@ -241,7 +248,8 @@ class MetricsLoggerNode(WatchedNode):
         """Messages came since the last batch: the last one came now (for :meth:`finish`); the
         watchdog's progress (see progressed) if records came among them. Once a batch, not
         once a message: a watchdog turn comes every 0.1 s."""
-        records = self._counts["state"] + self._counts["reference"] + self._counts["command"]
+        records = sum(self._counts[key] for key in (*RECORD_TOPICS.values(), LOSSES_TOPIC)
+                      if key in self._counts)  # fmt: skip
         if self._left != self._noted[0]:
             self._last_message = time.monotonic()
             if records != self._noted[1]:

@@ -30,7 +30,7 @@ from ..config import build_section, section_class
 from ..core.fields import Quantity, check_fields, quantity, spec_of
 from ..core.scenario import RunParams
 from ..errors import ConfigError, GraphError
-from ..interface import NAMESPACE, RECORD_TOPICS, TOPICS
+from ..interface import LOSSES_TOPIC, NAMESPACE, RECORD_TOPICS, TOPICS
 from .placement import apply_placement, launcher_pid
 from .transport import LocalBus, Outlet, executor, raw_publisher, raw_subscription
 
@@ -269,7 +269,8 @@ class DriveNode(Node):
         pub = raw_publisher(self, key)
         if self.bus is None:
             return pub
-        return Outlet(pub, self.bus, recheck=OUTSIDE_RECHECK if key in RECORD_TOPICS else 1)
+        per_step = key in RECORD_TOPICS or key == LOSSES_TOPIC
+        return Outlet(pub, self.bus, recheck=OUTSIDE_RECHECK if per_step else 1)
 
     def subscription(
         self, key: str, callback: Callable[[bytes], None], *, dds: bool = False

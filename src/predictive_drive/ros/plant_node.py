@@ -1,8 +1,9 @@
 """The plant node: motor + inverter + load (``ros2 run predictive_drive plant_node --ros-args
 --params-file config/<scenario>.yaml``).
 
-Lock-step (docs/ros.md): publishes state k, applies command k for Ts, publishes state k+1; /clock and
-/drive/joint_states decimated to 1 kHz of simulated time. Back-pressure: it runs at most
+Lock-step (docs/ros.md): publishes state k, applies command k for Ts, publishes state k+1; with
+``plant.losses`` on, /drive/losses k right after state k; /clock and /drive/joint_states decimated
+to 1 kHz of simulated time. Back-pressure: it runs at most
 :data:`~predictive_drive.interface.RECORDING_WINDOW` steps ahead of what the recorder says it has
 written (/drive/recorded); a state beyond that is held until the recorder catches up, and a
 recorder silent for ``peer_timeout`` while the drive waits ends the run, named. Scheduled
@@ -32,7 +33,7 @@ from .transport import qos
 
 __all__ = ["PlantNode", "main"]
 
-_STATE, _RECORDED = CODECS["state"], CODECS["recorded"]
+_STATE, _LOSSES, _RECORDED = CODECS["state"], CODECS["losses"], CODECS["recorded"]
 
 
 class PlantNode(WatchedNode):
@@ -54,6 +55,10 @@ class PlantNode(WatchedNode):
         self.pub_clock = self.publisher("clock")
         self.pub_joint = self.publisher("joint_states")
         self.lockstep = [self.pub_state, self.pub_clock, self.pub_joint]
+        #: /drive/losses, a plant that books its losses only
+        self.pub_losses = self.publisher("losses") if self.plant.losses() is not None else None
+        if self.pub_losses is not None:
+            self.lockstep.append(self.pub_losses)
         self.sub_cmd = self.subscription("command", self.on_command)
         self.sub_recorded = self.subscription("recorded", self.on_recorded)
         self.recorded = -1  #: every step up to this one is in the bag
@@ -107,6 +112,8 @@ class PlantNode(WatchedNode):
                 waits[f"3 subscribers of {state}"] = []
         if self.pub_joint.get_subscription_count() < 1:
             lacks("metrics_logger", f"no {TOPICS['joint_states'].name} subscription")
+        if self.pub_losses is not None and self.pub_losses.get_subscription_count() < 1:
+            lacks("metrics_logger", f"no {TOPICS['losses'].name} subscription")
         if self.await_launcher and LAUNCHER_NODE not in self._nodes_on(
             self.get_subscriptions_info_by_topic(clock)
         ):
@@ -202,12 +209,15 @@ class PlantNode(WatchedNode):
         self._release()
 
     def publish_state(self, state: State) -> None:
+        """State k, its losses (the plant is at k until command k comes) and tool messages."""
         self.pub_state.publish(_STATE.encode(state))
+        if self.pub_losses is not None:
+            self.pub_losses.publish(_LOSSES.encode(self.plant.losses()))  # type: ignore[arg-type]
         self.published = int(state.k)
         for key, _ns, data in tool_messages(state, self._every):
             (self.pub_clock if key == "clock" else self.pub_joint).publish(data)
         if int(state.k) >= self.n:
-            for p in (self.pub_state, self.pub_clock, self.pub_joint):
+            for p in self.lockstep:
                 p.wait_for_all_acked(Duration(seconds=self.peer_timeout))
             self.finished = True
 

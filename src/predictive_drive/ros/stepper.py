@@ -42,7 +42,7 @@ from ..core.signals import (
     strategy_name,
 )
 from ..errors import ConfigError, GraphError, Interrupted
-from ..interface import NAMESPACE, STEPPER_NODE, TOPICS, node_name
+from ..interface import LOSSES_TOPIC, NAMESPACE, STEPPER_NODE, TOPICS, node_name
 from ..readback import read_bag
 from ..recording import bag_info, scenario_of, tool_every, tool_messages
 from .placement import ros_env
@@ -188,7 +188,7 @@ def replay_into(
     with (
         isolated_domain() as domain,
         ros_session(STEPPER_NODE, domain=domain, namespace=NAMESPACE, log_dir=logs) as (me, ex),
-        BagWriter(out, info=bag_meta, claimed=True) as writer,
+        BagWriter(out, info=bag_meta, claimed=True, losses=trace.has_losses) as writer,
     ):
         got: list[bytes] = []
         sub = raw_subscription(me, "command", got.append)
@@ -227,7 +227,8 @@ def replay_into(
                 row, reference = tuple(trace.state[k]), tuple(trace.reference[k])
                 pub_ref.publish(ref.encode(reference))
                 pub_state.publish(state.encode(row))
-                recorder.inputs(row, reference)
+                lost = tuple(trace.losses[k]) if trace.has_losses else None
+                recorder.inputs(row, reference, lost)
                 if k < n:
                     answer = _until(
                         partial(_holds, got, k), f"{TOPICS['command'].name} for step {k}"
@@ -276,18 +277,26 @@ U_DC = STATE_INDEX.u_dc
 
 
 class _Recorder:
-    """The new bag as the replay goes, in log-time order: per step the recorded state and
-    reference, the new command, then the state's tool messages (/clock, /drive/joint_states);
-    the last state (it has no command) with its tool messages on :meth:`close`."""
+    """The new bag as the replay goes, in log-time order: per step the recorded state (its
+    losses, where the recording has them) and reference, the new command, then the state's tool
+    messages (/clock, /drive/joint_states); the last state (it has no command) with its tool
+    messages on :meth:`close`."""
 
     def __init__(self, writer: BagWriter, every: int) -> None:
         self.writer = writer
         self.every = every
         self._pending: tuple[float, ...] | None = None
 
-    def inputs(self, state: tuple[float, ...], reference: tuple[float, ...]) -> None:
+    def inputs(
+        self,
+        state: tuple[float, ...],
+        reference: tuple[float, ...],
+        losses: tuple[float, ...] | None = None,
+    ) -> None:
         ns = stamp_ns(state[1])
         self.writer.write("state", ns, CODECS["state"].encode(state))
+        if losses is not None:
+            self.writer.write(LOSSES_TOPIC, ns, CODECS[LOSSES_TOPIC].encode(losses))
         self.writer.write("reference", ns, CODECS["reference"].encode(reference))
         self._pending = state
 
