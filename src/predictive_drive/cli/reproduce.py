@@ -18,7 +18,7 @@ from ..api.robustness import ROBUSTNESS_STUDY, RobustnessResult
 from ..api.run import ENGINES
 from ..core.metrics import METRICS, Metric
 from ..errors import ConfigError
-from ..reports.fronts import FRONTS, PERIODS
+from ..reports.fronts import FRONTS, LOSS, PERIODS
 from ..reports.fronts import RANKED as FRONT_RANKED
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
 from ..reports.realism import RANKED, SHOWN
@@ -27,8 +27,8 @@ from .common import refuse, runs_progress, say_json, seconds, single_settings
 from .sweep import print_drawn
 
 HELP = (
-    "a paper's table side by side with our figures (or an MTPA study, the realism study, or "
-    "the fronts of distortion against switching frequency)"
+    "a paper's table side by side with our figures (or an MTPA study, the realism study, the "
+    "fronts of distortion against switching frequency and loss, or the robustness study)"
 )
 
 
@@ -387,6 +387,8 @@ def print_fronts(d: FrontsResult) -> None:
             f"  T* {t.torque_ref:g} N·m, psi* {t.flux_ref:g} Wb; the point's current "
             f"{t.base_current_a:.4g} A ({t.base_current}): TDD's base"
         )
+        if t.device:
+            print(f"  every run's inverter devices: {t.device} (plant.losses.device)")
         width = max(14, *(len(c.name) for c in t.curves)) + 1
         for c in t.curves:
             said = f"  (prediction: {c.prediction})" if c.prediction else ""
@@ -400,19 +402,17 @@ def print_fronts(d: FrontsResult) -> None:
                 )
                 tdd = METRICS["i_tdd_cont"].format(p.figures["i_tdd_cont"])
                 value = "" if c.knob == "ts" else f" {c.knob.rsplit('.', 1)[-1]} = {p.value:<8g}"
+                loss = METRICS[LOSS].format(p.figures[LOSS])
                 print(
                     f"    {marks} ts {1e6 * p.ts:>5g} µs{value} {cells} TDD {tdd} % "
-                    f"dT {100 * p.misses['torque']:+.2f} %" + ("" if p.holds else "  (off)")
+                    f"P_inv {loss} W dT {100 * p.misses['torque']:+.2f} %"
+                    + ("" if p.holds else "  (off)")
                 )
-        for key, ranked in t.ranking.items():
-            metric = METRICS[key]
-            print(f"  {metric.heading + ' (mean torque miss)':<{width + 2}}{heads}")
-            for name, values in t.at[key].items():
-                misses = t.torque_miss_at[key][name]
-                cells = "".join(f" {_cell(metric, v, m):>17}" for v, m in zip(values, misses))
-                print(f"    {name:<{width}}{cells}")
-            best = "".join(f" {(r[0] if r else '-'):>17}" for r in ranked)
-            print(f"    {'lowest':<{width}}{best}")
+        _front_tables(t.ranking, t.at, t.torque_miss_at, heads, width)
+        if t.loss_columns:
+            print(f"  at equal inverter loss ({METRICS[LOSS].title}):")
+            heads_w = "".join(f" {f'{w:g} W':>17}" for w in t.loss_columns)
+            _front_tables(t.ranking_loss, t.at_loss, t.torque_miss_at_loss, heads_w, width)
         if t.papers_ranking:
             print(f"  papers' ranking ({t.papers_source}): " + " < ".join(t.papers_ranking))
         if t.excluded:
@@ -422,7 +422,7 @@ def print_fronts(d: FrontsResult) -> None:
                     f"    {e.curve} ts {1e6 * e.ts:g} µs value {e.value:g} f_sw "
                     f"{f_sw.format(e.f_sw_hz)} kHz: {e.reason}"
                 )
-    print(f"(* on the front of {', '.join(METRICS[k].title for k in FRONT_RANKED)})")
+    print(f"(* on the front against f_sw of {', '.join(METRICS[k].title for k in FRONT_RANKED)})")
     print(f"How computed: {d.how}")
 
 
@@ -456,6 +456,25 @@ def print_robustness(d: RobustnessResult) -> None:
                     cells.append(f" {t.format(v) + ratio:>20}")
                 print(f"    {s:<20}" + "".join(cells))
     print(f"How computed: {d.how}")
+
+
+def _front_tables(
+    ranking: dict[str, list[list[str]]],
+    at: dict[str, dict[str, list[float | None]]],
+    misses_at: dict[str, dict[str, list[float | None]]],
+    heads: str,
+    width: int,
+) -> None:
+    """Each ranked figure's fronts read at the columns ``heads`` and the lowest there."""
+    for key, ranked in ranking.items():
+        metric = METRICS[key]
+        print(f"  {metric.heading + ' (mean torque miss)':<{width + 2}}{heads}")
+        for name, values in at[key].items():
+            misses = misses_at[key][name]
+            cells = "".join(f" {_cell(metric, v, m):>17}" for v, m in zip(values, misses))
+            print(f"    {name:<{width}}{cells}")
+        best = "".join(f" {(r[0] if r else '-'):>17}" for r in ranked)
+        print(f"    {'lowest':<{width}}{best}")
 
 
 def _cell(metric: Metric, value: float | None, miss: float | None) -> str:

@@ -391,64 +391,92 @@ CURVE_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h", "p", "d"
 
 
 def fronts_figures(result: Any) -> dict[str, Any]:
-    """One figure per operating point of a fronts study (``result.points``, each with
-    ``point``, ``caption`` and ``curves`` of ``points``): a panel per ranked figure (the
-    torque's ripple about its mean and against T*, the current's THD and TDD) against f_sw, log
+    """Per operating point of a fronts study (``result.points``, each with ``point``,
+    ``caption`` and ``curves`` of ``points``) a figure against f_sw (``<point>``) and, where its
+    runs booked losses, one against the inverter's loss (``<point>_loss``): a panel per ranked
+    figure (the torque's ripple about its mean and against T*, the current's THD and TDD), log
     axes; per curve, in its own colour and marker, its points (hollow where the run left the
     operating point) and its front as a line (dashed for field-oriented control) drawn only
-    between the neighbours the table reads between (:func:`~.fronts.joined`): no line
-    across a gap it leaves blank."""
-    from .fronts import joined
+    between the neighbours the table reads between (:func:`~.fronts.joined` on their f_sw and
+    figure, against either axis): no line across a gap it leaves blank."""
+    from .fronts import LOSS, joined
 
-    plt = _pyplot()
+    def one(a: Any, b: Any, key: str) -> bool:
+        pa, pb = sorted([(a.figures["f_sw_hz"], a.figures[key]), (b.figures["f_sw_hz"],
+                                                                  b.figures[key])])  # fmt: skip
+        return joined(pa, pb)
+
     figs: dict[str, Any] = {}
-    f_sw = METRICS["f_sw_hz"]
     keys = tuple(result.points[0].at) if result.points else ()
     for table in result.points:
-        fig, axes = plt.subplots(2, (len(keys) + 1) // 2, figsize=(12, 8.5), squeeze=False)
-        for ax, key in zip(axes.flat, keys):
-            shown = METRICS[key]
-            for i, curve in enumerate(table.curves):
-                style = {
-                    "color": CURVE_COLOURS[i % len(CURVE_COLOURS)],
-                    "marker": CURVE_MARKERS[i % len(CURVE_MARKERS)],
-                }
-                held = [p for p in curve.points if p.holds]
-                lost = [p for p in curve.points if not p.holds]
-                ax.plot(
-                    [f_sw.scale * p.figures["f_sw_hz"] for p in held],
-                    [shown.scale * p.figures[key] for p in held],
-                    ls="none", markersize=5, label=curve.name, **style,
-                )  # fmt: skip
-                if lost:
-                    ax.plot(
-                        [f_sw.scale * max(p.figures["f_sw_hz"], 1.0) for p in lost],
-                        [shown.scale * p.figures[key] for p in lost],
-                        ls="none", mfc="none", markersize=5, alpha=0.6, **style,
-                    )  # fmt: skip
-                front = [(p.figures["f_sw_hz"], p.figures[key]) for p in curve.front(key)]
-                dashed = "--" if curve.strategy.startswith(("foc", "ifoc")) else "-"
-                for a, b in zip(front, front[1:]):
-                    if joined(a, b):
-                        ax.plot(
-                            [f_sw.scale * a[0], f_sw.scale * b[0]],
-                            [shown.scale * a[1], shown.scale * b[1]],
-                            dashed, color=style["color"], lw=1.2,
-                        )  # fmt: skip
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set(xlabel=f_sw.axis, ylabel=shown.axis)
-            ax.grid(True, which="both", alpha=0.3)
-        for ax in list(axes.flat)[len(keys) :]:
-            ax.set_visible(False)
-        axes.flat[0].legend(fontsize=7, ncol=2)
-        fig.suptitle(
-            f"{table.caption}; hollow: left the operating point; lines: the fronts",
-            fontsize=9,
+        figs[table.point] = _fronts_figure(
+            table, keys, "f_sw_hz", lambda c, k: c.front(k), one, "lines: the fronts"
         )
-        fig.tight_layout()
-        figs[table.point] = fig
+        if any(math.isfinite(p.figures.get(LOSS, math.nan)) for c in table.curves
+               for p in c.points):  # fmt: skip
+            figs[f"{table.point}_loss"] = _fronts_figure(
+                table, keys, LOSS, lambda c, k: c.loss_front(k), one,
+                f"against the inverter's loss ({table.device}; the axis spans the held runs); "
+                "lines: the fronts",
+            )  # fmt: skip
     return figs
+
+
+def _fronts_figure(
+    table: Any, keys: Sequence[str], x: str, front_of: Any, one: Any, what: str
+) -> Any:
+    """One operating point's fronts against figure ``x`` (a metric key): ``front_of(curve,
+    key)`` its front's points, ``one(a, b, key)`` whether two neighbours are one stretch."""
+    plt = _pyplot()
+    shown_x = METRICS[x]
+    floor = 1.0 if x == "f_sw_hz" else 1e-2  #: a run that stopped switching, on log axes
+    held_x = [
+        v for c in table.curves for p in c.points if p.holds and math.isfinite(v := p.figures[x])
+    ]
+    fig, axes = plt.subplots(2, (len(keys) + 1) // 2, figsize=(12, 8.5), squeeze=False)
+    for ax, key in zip(axes.flat, keys):
+        shown = METRICS[key]
+        for i, curve in enumerate(table.curves):
+            style = {
+                "color": CURVE_COLOURS[i % len(CURVE_COLOURS)],
+                "marker": CURVE_MARKERS[i % len(CURVE_MARKERS)],
+            }
+            held = [p for p in curve.points if p.holds]
+            lost = [p for p in curve.points if not p.holds]
+            ax.plot(
+                [shown_x.scale * p.figures[x] for p in held],
+                [shown.scale * p.figures[key] for p in held],
+                ls="none", markersize=5, label=curve.name, **style,
+            )  # fmt: skip
+            if lost:
+                ax.plot(
+                    [shown_x.scale * max(p.figures[x], floor) for p in lost],
+                    [shown.scale * p.figures[key] for p in lost],
+                    ls="none", mfc="none", markersize=5, alpha=0.6, **style,
+                )  # fmt: skip
+            front = front_of(curve, key)
+            dashed = "--" if curve.strategy.startswith(("foc", "ifoc")) else "-"
+            for a, b in zip(front, front[1:]):
+                if one(a, b, key):
+                    ax.plot(
+                        [shown_x.scale * a.figures[x], shown_x.scale * b.figures[x]],
+                        [shown.scale * a.figures[key], shown.scale * b.figures[key]],
+                        dashed, color=style["color"], lw=1.2,
+                    )  # fmt: skip
+        # a narrow range of losses (a SiC drive's, nearly all conduction) on a linear axis
+        narrow = x != "f_sw_hz" and held_x and max(held_x) < 3.0 * min(held_x)
+        ax.set_xscale("linear" if narrow else "log")
+        ax.set_yscale("log")
+        ax.set(xlabel=shown_x.axis, ylabel=shown.axis)
+        ax.grid(True, which="both", alpha=0.3)
+        if x != "f_sw_hz" and held_x:  # a run that lost the point may have lost the inverter
+            ax.set_xlim(shown_x.scale * min(held_x) / 1.1, shown_x.scale * max(held_x) * 1.1)
+    for ax in list(axes.flat)[len(keys) :]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f"{table.caption}\nhollow: left the operating point; {what}", fontsize=9)
+    fig.tight_layout()
+    return fig
 
 
 def save(figs: dict[str, Any], directory: str | Path, prefix: str = "") -> list[Path]:
