@@ -115,6 +115,11 @@ NOT_RUN = {
     ),
     "time predictive-drive reproduce fronts --json": "the timing of the command above",
     "predictive-drive reproduce fronts --json": "the command above, its table as JSON",
+    "predictive-drive reproduce efficiency": "300 runs, over a minute here; test_efficiency.py "
+    "runs a small grid through the same code (api.efficiency.reproduce_efficiency), "
+    "test_install.py the verb",
+    "predictive-drive reproduce efficiency --json": "the command above, its maps as JSON",
+    "time predictive-drive reproduce efficiency --json": "the timing of the command above",
     "predictive-drive reproduce robustness": "hundreds of runs; test_robustness.py runs a short "
     "study through the same code (api.robustness.reproduce_robustness), test_install.py the verb",
     "predictive-drive reproduce robustness --draws 1000": "16,044 runs, most of an hour here",

@@ -27,6 +27,7 @@ from ..dependencies import missing
 __all__ = [
     "Run",
     "compare_figures",
+    "efficiency_figures",
     "fronts_figures",
     "losses_figure",
     "realism_figures",
@@ -477,6 +478,64 @@ def _fronts_figure(
     fig.suptitle(f"{table.caption}\nhollow: left the operating point; {what}", fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def efficiency_figures(result: Any) -> dict[str, Any]:
+    """The efficiency study's maps (``result.maps`` over ``result.speeds_rpm`` ×
+    ``result.torques``): one column per map, η (%) above and the inverter's loss (W) below, as
+    colour maps on one scale per row with each cell's value written in it; a point that left
+    its operating point is blank."""
+    plt = _pyplot()
+    speeds, torques = list(result.speeds_rpm), list(result.torques)
+    rows = (("efficiency", "viridis"), ("p_inverter", "magma_r"))
+    n = max(len(result.maps), 1)
+    fig, axes = plt.subplots(
+        2, n, figsize=(4.6 * n + 1.2, 8.0), squeeze=False, layout="constrained"
+    )
+    for r, (key, cmap) in enumerate(rows):
+        shown = METRICS[key]
+        grids = [
+            np.array(
+                [
+                    [np.nan if v is None else shown.scale * v for v in row]
+                    for row in m.grid(key, speeds, torques)
+                ]
+            )  # fmt: skip
+            for m in result.maps
+        ]
+        finite = [g[np.isfinite(g)] for g in grids]
+        values = np.concatenate(finite) if finite else np.zeros(0)
+        lo, hi = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
+        mesh = None
+        for ax, m, g in zip(axes[r], result.maps, grids):
+            mesh = ax.pcolormesh(
+                _edges(speeds), _edges(torques), np.ma.masked_invalid(g), cmap=cmap, vmin=lo,
+                vmax=hi,
+            )  # fmt: skip
+            for i, t in enumerate(torques):
+                for j, s in enumerate(speeds):
+                    if np.isfinite(g[i, j]):
+                        red, green, blue, _ = mesh.cmap(mesh.norm(g[i, j]))
+                        dark = 0.299 * red + 0.587 * green + 0.114 * blue < 0.5
+                        ax.text(
+                            s, t, f"{g[i, j]:.3g}", ha="center", va="center", fontsize=5.5,
+                            color="white" if dark else "black",
+                        )  # fmt: skip
+            ax.set(title=f"{m.name}: {shown.title}", xlabel="speed (r/min)", ylabel="torque (N·m)")
+        if mesh is not None:
+            fig.colorbar(mesh, ax=list(axes[r]), label=shown.axis, shrink=0.9)
+    fig.suptitle(f"{result.caption}; blank: left the operating point", fontsize=9)
+    return {"maps": fig}
+
+
+def _edges(centres: Sequence[float]) -> np.ndarray:
+    """Cell edges around ascending grid ``centres``: midway between neighbours, the ends half a
+    step out (a single centre: ±10 %)."""
+    c = np.asarray(centres, dtype=float)
+    if c.size == 1:
+        return np.array([0.9 * c[0], 1.1 * c[0]])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.concatenate(([c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]))
 
 
 def save(figs: dict[str, Any], directory: str | Path, prefix: str = "") -> list[Path]:
