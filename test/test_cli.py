@@ -61,7 +61,7 @@ REFUSED = [
      "so --strategy and --switch do not apply"),
     (["run", "im_short", "--external", "torque_controller= "], "an empty command"),
     (["reproduce", "im_paper", "--scheduler", "tcp://x:1"],
-     "--scheduler serves the realism, fronts and robustness studies only"),
+     "--scheduler serves the realism, fronts, robustness and efficiency studies only"),
     (["reproduce", "fronts", "--draws", "5"],
      "--draws chooses the robustness study's drives, not fronts's"),
 ]  # fmt: skip

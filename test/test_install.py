@@ -160,6 +160,9 @@ def test_every_verb_runs_from_the_install(install, tmp_path):
     rob = ok_json(install, work, "reproduce", "robustness", "--points", "ipmsm_steady",
                   "--draws", "2", "--duration", "0.03")  # fmt: skip
     assert rob["draws"] == 2 and len(rob["points"][0]["figures"]) == 4
+    eff = ok_json(install, work, "reproduce", "efficiency", "--speeds-rpm", "1000", "--torques",
+                  "15", "--duration", "0.06")  # fmt: skip
+    assert eff["runs"] == 3 and [len(m["efficiency"]) for m in eff["maps"]] == [1, 1, 1]
 
     bench = ok_json(install, work, "bench", "--quick", timeout=300)
     assert bench["core_steps_per_s"] > 0 and bench["report_steps_per_s"] > 0

@@ -105,10 +105,8 @@ NOT_RUN = {
         "runs it for 0.05 s with a budget and reads report's line"
     ),
     # docs/reproduction.md
-    "predictive-drive reproduce fronts": "616 runs, 13-31 min here; test_fronts.py runs a "
+    "predictive-drive reproduce fronts": "635 runs, 5-6 min here; test_fronts.py runs a "
     "small study through the same code (api.fronts.reproduce_fronts)",
-    "predictive-drive sweep hs_ipmsm_steady --strategy mptc,simplified3": "seconds; "
-    "test_fronts.py runs the steady points' sweeps' code (api.study.StudyRuns.runs)",
     "predictive-drive reproduce fronts --points im_steady --curves mptc,ifoc --periods-us none "
     '--external "torque_controller=python3 examples/dtc_im/dtc_im/dtc_node.py" --label dtc --knob '
     "torque_controller.torque_band=0.02,0.05,0.1,0.2 --figures figures": (
@@ -117,6 +115,11 @@ NOT_RUN = {
     ),
     "time predictive-drive reproduce fronts --json": "the timing of the command above",
     "predictive-drive reproduce fronts --json": "the command above, its table as JSON",
+    "predictive-drive reproduce efficiency": "300 runs, over a minute here; test_efficiency.py "
+    "runs a small grid through the same code (api.efficiency.reproduce_efficiency), "
+    "test_install.py the verb",
+    "predictive-drive reproduce efficiency --json": "the command above, its maps as JSON",
+    "time predictive-drive reproduce efficiency --json": "the timing of the command above",
     "predictive-drive reproduce robustness": "hundreds of runs; test_robustness.py runs a short "
     "study through the same code (api.robustness.reproduce_robustness), test_install.py the verb",
     "predictive-drive reproduce robustness --draws 1000": "16,044 runs, most of an hour here",

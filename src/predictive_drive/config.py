@@ -158,25 +158,39 @@ def device_of(plant: PlantParams, where: str | Path, *, text: str | None = None)
     if not name:
         return None
     key = f"{where}: /drive/plant.losses.device"
-    if text is not None:
-        device = parse_device(text, f"{name} (stored)")
-    else:
-        p = Path(name)
-        if p.suffix != ".json" and "/" not in name:
-            p = config_dir() / "devices" / f"{name}.json"
-            if not p.is_file():
-                raise ConfigError(
-                    f"{key}: no device {name!r}; available: {', '.join(device_names())} (or "
-                    f"give a path to a .json device file)"
-                )
-        elif not p.is_file():
-            raise ConfigError(f"{key}: no device file {p}")
-        try:
-            device = load_device(p)
-        except ConfigError as e:
-            raise ConfigError(f"{key}: {e}") from None
+    device = read_device(name, key, text=text)
     device.check_voltage(plant.u_dc, key)
     return device
+
+
+def controller_device_of(params: Any, where: str | Path) -> Device | None:
+    """The devices a torque controller's ``device`` names (its loss-aware cost's switching
+    energies), read as :func:`device_of` reads the plant's; None where it names none."""
+    name = getattr(params, "device", "")
+    if not name:
+        return None
+    return read_device(name, f"{where}: /drive/torque_controller.device")
+
+
+def read_device(name: str, key: str, *, text: str | None = None) -> Device:
+    """The device file ``name`` (a name in the scenario folder's ``devices/``, or a path), or
+    its stored ``text``; ``key`` names the setting in errors."""
+    if text is not None:
+        return parse_device(text, f"{name} (stored)")
+    p = Path(name)
+    if p.suffix != ".json" and "/" not in name:
+        p = config_dir() / "devices" / f"{name}.json"
+        if not p.is_file():
+            raise ConfigError(
+                f"{key}: no device {name!r}; available: {', '.join(device_names())} (or "
+                f"give a path to a .json device file)"
+            )
+    elif not p.is_file():
+        raise ConfigError(f"{key}: no device file {p}")
+    try:
+        return load_device(p)
+    except ConfigError as e:
+        raise ConfigError(f"{key}: {e}") from None
 
 
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
@@ -475,6 +489,10 @@ def load_scenario_text(
         except ConfigError:
             built[node] = None
     device = device_of(built["plant"], path, text=device_text)
+    ctrl = built["torque_controller"]
+    # the plant's file where the controller names the same (as read: a recording's stored one)
+    same = device is not None and getattr(ctrl, "device", "") == built["plant"].losses.device
+    ctrl_device = device if same else controller_device_of(ctrl, path)
     try:
         sc = Scenario(
             run,
@@ -488,6 +506,7 @@ def load_scenario_text(
             external="torque_controller" in own,
             own=frozenset(own),
             device=device,
+            controller_device=ctrl_device,
         )
     except ConfigError as e:  # its messages name the section and key
         raise ConfigError(f"{path}: {e}") from None

@@ -25,6 +25,7 @@ from ..reports.fronts import (
     COMMON_FSW,
     FRONTS,
     KNOBS,
+    LOSS,
     PREDICTION,
     RANKED,
     SHOWN,
@@ -33,6 +34,8 @@ from ..reports.fronts import (
     OperatingPoint,
     interpolate,
     joined,
+    loss_reading,
+    mixed,
     pareto,
     reading,
 )
@@ -46,9 +49,12 @@ __all__ = [
     "FrontTable",
     "FrontsChoice",
     "FrontsResult",
+    "base_current",
     "external_curve",
+    "held",
     "interpolate",
     "joined",
+    "on_fronts",
     "pareto",
     "prediction_setting",
     "reading",
@@ -74,7 +80,14 @@ _HOW = (
     "interpolates log-log between the neighbours that enclose it when they are at most twice "
     "apart and one regime (the figure steps by no more than the cube of their f_sw ratio: a "
     "steeper step is a jump between two ways of switching), else '-'. Rank: lowest first at "
-    "each frequency."
+    "each frequency. Losses: every run with the drive's own inverter devices (the point's "
+    "device file, junction temperatures fed back every ms as the losses section's defaults "
+    "do); P_inverter = the six transistors' and diodes' conduction and switching losses, means "
+    "over the window. At equal loss: the front of a curve against P_inverter (its points no "
+    "other of its points beats in both the loss and the figure), read at the point's loss "
+    "columns as the f_sw columns are (within 0.5 % as measured, else log-log between the "
+    "neighbours that enclose the column), the neighbours one regime by the f_sw rule on their "
+    "own (f_sw, figure) pairs, else '-'; rank lowest first at each loss."
 )
 
 
@@ -93,6 +106,8 @@ class FrontPoint:
     reason: str
     on_front: dict[str, bool]
     wall_s: float
+    #: on which figures' fronts against the inverter's loss it lies
+    on_loss_front: dict[str, bool] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -115,6 +130,12 @@ class FrontCurve:
         on = [p for p in self.points if p.on_front[key]]
         return sorted(on, key=lambda p: (p.figures["f_sw_hz"], p.figures[key]))
 
+    def loss_front(self, key: str) -> list[FrontPoint]:
+        """The points on the front of figure ``key`` against the inverter's loss, by rising
+        loss."""
+        on = [p for p in self.points if p.on_loss_front.get(key)]
+        return sorted(on, key=lambda p: (p.figures[LOSS], p.figures[key]))
+
 
 @dataclass(frozen=True)
 class Excluded:
@@ -134,9 +155,11 @@ class FrontTable:
     """One operating point: its curves, each front read at the common frequencies (``at[metric]
     [curve]``, None where the table leaves it blank) with the mean torque's miss there
     (``torque_miss_at[metric][curve]``, a signed share), the ranking there (``ranking[metric]``,
-    per frequency the curves best first) beside the papers' ranking; the references (T* N·m, ψ*
-    Wb), the current the TDD divides by (``base_current_a``, an amplitude, and what it is) and
-    the runs that left the operating point."""
+    per frequency the curves best first) beside the papers' ranking; the same at equal inverter
+    loss (``loss_columns`` W: ``at_loss``, ``torque_miss_at_loss``, ``ranking_loss``) with the
+    runs' ``device``; the references (T* N·m, ψ* Wb), the current the TDD divides by
+    (``base_current_a``, an amplitude, and what it is) and the runs that left the operating
+    point."""
 
     point: str
     caption: str
@@ -151,6 +174,11 @@ class FrontTable:
     base_current_a: float
     base_current: str
     excluded: list[Excluded]
+    device: str = ""
+    loss_columns: tuple[float, ...] = ()
+    at_loss: dict[str, dict[str, list[float | None]]] = field(default_factory=dict)
+    torque_miss_at_loss: dict[str, dict[str, list[float | None]]] = field(default_factory=dict)
+    ranking_loss: dict[str, list[list[str]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -362,7 +390,7 @@ class FrontsChoice:
         return out
 
 
-def _base_current(sc: Scenario, torque: float, flux: float) -> tuple[float, str]:
+def base_current(sc: Scenario, torque: float, flux: float) -> tuple[float, str]:
     """The current the operating point takes (A, amplitude) and what it is: a PMSM's MTPA
     current for T* (paper 002 eq 8, 10: FOC's reference there); an induction motor's as
     rotor-field orientation asks it at T*, ψ* (i_d = ψ_r*/L_m, i_q = T*·L_r/(1.5 p L_m ψ_r*),
@@ -405,11 +433,13 @@ def prediction_setting(sc: Scenario) -> dict[str, Any]:
     return {"torque_controller.prediction": PREDICTION}
 
 
-def _curve_settings(curve: Curve, path: Path, text: str) -> dict[str, Any]:
-    """The settings the fronts add to a built-in curve's own (:func:`prediction_setting`)."""
+def _curve_settings(op: OperatingPoint, curve: Curve, path: Path, text: str) -> dict[str, Any]:
+    """The settings the fronts add to a curve's own: the point's inverter devices (every
+    curve's plant) and, for a built-in, :func:`prediction_setting`."""
+    devices = {"plant.losses.device": op.device} if op.device else {}
     if curve.external is not None:
-        return {}
-    return prediction_setting(load_scenario_text(text, str(path)))
+        return devices
+    return {**devices, **prediction_setting(load_scenario_text(text, str(path)))}
 
 
 @dataclass(frozen=True)
@@ -440,7 +470,7 @@ def _plans(study: Mapping[str, OperatingPoint], settings: dict[str, Any]) -> lis
             path = resolve_scenario_path(c.scenario)
             text = path.read_text(encoding="utf-8")
             own = ["torque_controller"] if c.external is not None else []
-            extra = {**_curve_settings(c, path, text), **settings, **c.settings}
+            extra = {**_curve_settings(op, c, path, text), **settings, **c.settings}
             cases[c.name] = []
             seen = set()
             for point in c.points():
@@ -544,6 +574,16 @@ def _point(
     f["i_tdd_cont"] = f_tdd = m.i_distortion_cont / base
     if f_tdd != f_tdd:
         f["i_tdd_cont"] = math.nan
+    misses, reason = held(m, torque, flux, base)
+    ts = float(case.settings.get("ts", sc.ts))
+    value = float(case.settings.get(c.knob, math.nan)) if c.knob != "ts" else ts
+    return FrontPoint(value, ts, f, misses, not reason, reason, {}, row.wall_s)
+
+
+def held(m: Any, torque: float, flux: float, base: float) -> tuple[dict[str, float], str]:
+    """How far a run's metrics ``m`` missed its operating point — its mean torque T* N·m, its
+    mean |ψ_s| ψ* Wb, its current's fundamental the point's current ``base`` A (signed shares)
+    — and why it left it ('' where it held it within :data:`~..reports.fronts.TOLERANCE`)."""
     misses = {
         "torque": m.t_mean_error_cont / torque,
         "flux": m.psi_mean_error_cont / flux,
@@ -554,14 +594,11 @@ def _point(
         for k, v in misses.items()
         if not abs(v) <= TOLERANCE[k]  # NaN: not measured, not held
     ]
-    reason = ""
-    if lost:
-        reason = "left the operating point: " + ", ".join(lost) + " (tolerance " + ", ".join(
-            f"{100 * TOLERANCE[k]:g} %" for k in TOLERANCE
-        ) + ")"  # fmt: skip
-    ts = float(case.settings.get("ts", sc.ts))
-    value = float(case.settings.get(c.knob, math.nan)) if c.knob != "ts" else ts
-    return FrontPoint(value, ts, f, misses, not lost, reason, {}, row.wall_s)
+    if not lost:
+        return misses, ""
+    return misses, "left the operating point: " + ", ".join(lost) + " (tolerance " + ", ".join(
+        f"{100 * TOLERANCE[k]:g} %" for k in TOLERANCE
+    ) + ")"  # fmt: skip
 
 
 def _table(plan: _Plan, rows: Mapping[tuple[str, int], Any]) -> FrontTable:
@@ -569,7 +606,7 @@ def _table(plan: _Plan, rows: Mapping[tuple[str, int], Any]) -> FrontTable:
     first = plan.loaded[op.curves[0].name]
     torque = abs(first.speed_pi_params.torque_values[-1])
     flux = first.speed_pi_params.flux_ref
-    base, base_text = _base_current(first, torque, flux)
+    base, base_text = base_current(first, torque, flux)
     curves, excluded = [], []
     for c in op.curves:
         sc = plan.loaded[c.name]
@@ -577,19 +614,7 @@ def _table(plan: _Plan, rows: Mapping[tuple[str, int], Any]) -> FrontTable:
             _point(c, case, sc, rows[(c.name, i)], (torque, flux, base))
             for i, case in enumerate(plan.cases[c.name])
         ]
-        fronts = {
-            key: pareto(
-                [
-                    (p.figures["f_sw_hz"], p.figures[key]) if p.holds else (math.nan,) * 2
-                    for p in raw
-                ]  # fmt: skip
-            )
-            for key in RANKED
-        }
-        points = [
-            dataclasses.replace(p, on_front={k: fronts[k][i] for k in RANKED})
-            for i, p in enumerate(raw)
-        ]
+        points = on_fronts(raw)
         excluded += [
             Excluded(c.name, p.value, p.ts, p.figures["f_sw_hz"], p.misses, p.reason)
             for p in points
@@ -614,10 +639,42 @@ def _table(plan: _Plan, rows: Mapping[tuple[str, int], Any]) -> FrontTable:
         for fc in curves:
             at[key][fc.name], miss_at[key][fc.name] = _read(fc, key)
     ranking = {key: [_ranked(at[key], i) for i in range(len(COMMON_FSW))] for key in RANKED}
+    at_loss: dict[str, dict[str, list[float | None]]] = {}
+    miss_at_loss: dict[str, dict[str, list[float | None]]] = {}
+    for key in RANKED:
+        at_loss[key], miss_at_loss[key] = {}, {}
+        for fc in curves:
+            at_loss[key][fc.name], miss_at_loss[key][fc.name] = _read_loss(fc, key, op.loss_columns)
+    columns = range(len(op.loss_columns))
+    ranking_loss = {key: [_ranked(at_loss[key], i) for i in columns] for key in RANKED}
     return FrontTable(
         plan.name, op.caption, curves, at, miss_at, ranking, op.papers_ranking,
-        op.papers_source, torque, flux, base, base_text, excluded,
+        op.papers_source, torque, flux, base, base_text, excluded, op.device, op.loss_columns,
+        at_loss, miss_at_loss, ranking_loss,
     )  # fmt: skip
+
+
+def on_fronts(raw: Sequence[FrontPoint]) -> list[FrontPoint]:
+    """A curve's points, each marked with the ranked figures' fronts it lies on: against f_sw
+    (``on_front``) and against the inverter's loss (``on_loss_front``)."""
+    fronts = {key: _pareto(raw, "f_sw_hz", key) for key in RANKED}
+    by_loss = {key: _pareto(raw, LOSS, key) for key in RANKED}
+    return [
+        dataclasses.replace(
+            p,
+            on_front={k: fronts[k][i] for k in RANKED},
+            on_loss_front={k: by_loss[k][i] for k in RANKED},
+        )  # fmt: skip
+        for i, p in enumerate(raw)
+    ]
+
+
+def _pareto(points: Sequence[FrontPoint], x: str, key: str) -> list[bool]:
+    """Which of a curve's points lie on its front of ``key`` against figure ``x`` (f_sw or the
+    inverter's loss): only those that hold the operating point."""
+    return pareto(
+        [(p.figures[x], p.figures[key]) if p.holds else (math.nan, math.nan) for p in points]
+    )
 
 
 def _read(c: FrontCurve, key: str) -> tuple[list[float | None], list[float | None]]:
@@ -625,22 +682,40 @@ def _read(c: FrontCurve, key: str) -> tuple[list[float | None], list[float | Non
     there (read the same way, linear in the mix)."""
     front = c.front(key)
     pairs = [(p.figures["f_sw_hz"], p.figures[key]) for p in front]
-    values: list[float | None] = []
+    return _mix(front, [reading(pairs, f) for f in COMMON_FSW], pairs)
+
+
+def _read_loss(
+    c: FrontCurve, key: str, columns: Sequence[float]
+) -> tuple[list[float | None], list[float | None]]:
+    """The curve's front of ``key`` against the inverter's loss at ``columns`` W
+    (:func:`~..reports.fronts.loss_reading`), and the mean torque's miss there."""
+    front = c.loss_front(key)
+    triples = [(p.figures[LOSS], p.figures[key], p.figures["f_sw_hz"]) for p in front]
+    pairs = [(w, v) for w, v, _ in triples]
+    return _mix(front, [loss_reading(triples, w) for w in columns], pairs)
+
+
+def _mix(
+    front: Sequence[FrontPoint],
+    readings: Sequence[tuple[int, int, float] | None],
+    pairs: Sequence[tuple[float, float]],
+) -> tuple[list[float | None], list[float | None]]:
+    """Each reading's value (:func:`~..reports.fronts.mixed`) and mean torque miss (linear in
+    the mix); None where the front does not say."""
+    values = [mixed(pairs, r) for r in readings]
     misses: list[float | None] = []
-    for f in COMMON_FSW:
-        r = reading(pairs, f)
+    for r in readings:
         if r is None:
-            values.append(None)
             misses.append(None)
             continue
         i, j, s = r
-        values.append(interpolate(pairs, f))
         a, b = front[i].misses["torque"], front[j].misses["torque"]
         misses.append(a + s * (b - a))
     return values, misses
 
 
 def _ranked(values: Mapping[str, list[float | None]], i: int) -> list[str]:
-    """The curves with a figure at frequency ``i``, lowest first."""
+    """The curves with a figure at column ``i``, lowest first."""
     known = [(x, n) for n, v in values.items() if (x := v[i]) is not None]
     return [n for _, n in sorted(known)]

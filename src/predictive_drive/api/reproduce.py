@@ -40,6 +40,12 @@ from ..reports.realism import (
 from ..reports.robustness import DEFAULT_DRAWS, DEFAULT_SEED
 from .compare import compare
 from .controller_replay import controller_replay
+from .efficiency import (
+    EFFICIENCY_STUDY,
+    EfficiencyChoice,
+    EfficiencyResult,
+    reproduce_efficiency,
+)
 from .fronts import FRONTS_STUDY, FrontsChoice, FrontsResult, reproduce_fronts
 from .robustness import (
     ROBUSTNESS_STUDY,
@@ -70,7 +76,7 @@ __all__ = [
 #: the named study that is neither a paper's table nor an MTPA study
 REALISM_STUDY = "realism"
 #: the studies across scenarios (each a sweep, in-process, on the local cores or Dask)
-STUDIES = (REALISM_STUDY, FRONTS_STUDY, ROBUSTNESS_STUDY)
+STUDIES = (REALISM_STUDY, FRONTS_STUDY, ROBUSTNESS_STUDY, EFFICIENCY_STUDY)
 
 #: the figures of a table row, by metric key (:data:`~..core.metrics.METRICS`)
 TABLE_FIGURES = (
@@ -285,7 +291,11 @@ def reproduce(
     seed: int | None = None,
     points: Sequence[str] | None = None,
     spreads: Sequence[str] = (),
-) -> PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult | RobustnessResult:
+    efficiency: EfficiencyChoice | None = None,
+) -> (
+    PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult | RobustnessResult
+    | EfficiencyResult
+):  # fmt: skip
     """Run every row of a paper's table (independent runs in parallel across the cores) and set
     our figures beside the paper's, or run an MTPA study, or the realism study
     (:func:`reproduce_realism`, the one that runs on a Dask cluster at ``scheduler`` too).
@@ -297,7 +307,9 @@ def reproduce(
     each run ends. The fronts study (:func:`~.fronts.reproduce_fronts`) runs what ``fronts``
     chooses of it (its knobs' values, points, curves, a controller of one's own); the
     robustness study (:func:`~.robustness.reproduce_robustness`) draws ``draws`` drives by
-    ``seed`` at ``points`` (None: all), ``spreads`` replacing or adding to each point's."""
+    ``seed`` at ``points`` (None: all), ``spreads`` replacing or adding to each point's; the
+    efficiency study (:func:`~.efficiency.reproduce_efficiency`) runs the maps and grid
+    ``efficiency`` chooses."""
     settings = dict(settings or {})
     robust = (draws, seed, points)
     if scenario != ROBUSTNESS_STUDY and (any(x is not None for x in robust) or spreads):
@@ -311,6 +323,11 @@ def reproduce(
             f"--curves, --no-horizons, --external, --label and --knob choose the fronts study's "
             f"runs"
         )
+    if scenario != EFFICIENCY_STUDY and efficiency is not None and efficiency != EfficiencyChoice():
+        raise ConfigError(
+            f"reproduce {scenario}: --maps, --speeds-rpm and --torques choose the efficiency "
+            f"study's runs"
+        )
     if scenario in STUDIES:
         if engine != "inprocess":
             raise ConfigError(
@@ -319,8 +336,8 @@ def reproduce(
             )
     elif scheduler is not None:
         raise ConfigError(
-            f"reproduce {scenario}: a Dask scheduler serves the realism, fronts and robustness "
-            f"studies only (the tables' bags are drawn and timed here)"
+            f"reproduce {scenario}: a Dask scheduler serves the realism, fronts, robustness and "
+            f"efficiency studies only (the tables' bags are drawn and timed here)"
         )
     elif scenario not in MTPA_STUDIES and scenario not in PAPER_TABLES:
         raise ConfigError(
@@ -331,6 +348,8 @@ def reproduce(
         study = (fronts or FrontsChoice()).study(FRONTS)
     if scenario == ROBUSTNESS_STUDY:
         chosen = robustness_points(points, spreads)
+    if scenario == EFFICIENCY_STUDY:
+        grid = (efficiency or EfficiencyChoice()).study()
     check_output_dir(figures, option="--figures")  # before the work, not after it
     with studying(
         out_root,
@@ -352,6 +371,9 @@ def reproduce(
                 settings=settings,
             )
             return dataclasses.replace(result_r, windows=runner.windows, bags=runner.kept())
+        if scenario == EFFICIENCY_STUDY:
+            result_e = reproduce_efficiency(runner, figures=figures, settings=settings, study=grid)
+            return dataclasses.replace(result_e, windows=runner.windows, bags=runner.kept())
         if scenario == FRONTS_STUDY:
             result = reproduce_fronts(runner, figures=figures, settings=settings, study=study)
         elif scenario == REALISM_STUDY:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..api.efficiency import EFFICIENCY_STUDY, EfficiencyChoice, EfficiencyResult
 from ..api.fronts import FRONTS_STUDY, FrontsChoice, FrontsResult
 from ..api.reproduce import (
     STUDIES,
@@ -18,7 +19,8 @@ from ..api.robustness import ROBUSTNESS_STUDY, RobustnessResult
 from ..api.run import ENGINES
 from ..core.metrics import METRICS, Metric
 from ..errors import ConfigError
-from ..reports.fronts import FRONTS, PERIODS
+from ..reports.efficiency import EFFICIENCY
+from ..reports.fronts import FRONTS, LOSS, PERIODS
 from ..reports.fronts import RANKED as FRONT_RANKED
 from ..reports.papers import MTPA_STUDIES, PAPER_TABLES
 from ..reports.realism import RANKED, SHOWN
@@ -27,8 +29,9 @@ from .common import refuse, runs_progress, say_json, seconds, single_settings
 from .sweep import print_drawn
 
 HELP = (
-    "a paper's table side by side with our figures (or an MTPA study, the realism study, or "
-    "the fronts of distortion against switching frequency)"
+    "a paper's table side by side with our figures (or an MTPA study, the realism study, the "
+    "fronts of distortion against switching frequency and loss, the robustness study, or the "
+    "efficiency maps)"
 )
 
 
@@ -65,8 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "in the columns that have it",
     )
     p.add_argument(
-        "--scheduler", metavar="ADDRESS", help="realism, fronts, robustness: run on this Dask "
-        "cluster (e.g. tcp://host:8786) instead of the local cores",
+        "--scheduler", metavar="ADDRESS", help="realism, fronts, robustness, efficiency: run on "
+        "this Dask cluster (e.g. tcp://host:8786) instead of the local cores",
     )  # fmt: skip
     p.add_argument(
         "--lambda-sw", metavar="V1,V2,...", type=_numbers,
@@ -124,8 +127,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "section says)",
     )  # fmt: skip
     p.add_argument(
-        "--jobs", type=int, help="realism, fronts, robustness: local processes (default: "
-        "every core)",
+        "--jobs", type=int, help="realism, fronts, robustness, efficiency: local processes "
+        "(default: every core)",
     )  # fmt: skip
     p.add_argument(
         "--draws", type=int, metavar="N",
@@ -138,6 +141,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--spread", action="append", metavar="KEY=normal:S|uniform:S",
         help="robustness only: a parameter's spread, replacing a point's own for that key or "
         "added (repeatable)",
+    )  # fmt: skip
+    p.add_argument(
+        "--maps", metavar="M1,M2", type=_names,
+        help="efficiency only: the maps to run, by strategy (default all: "
+        + ", ".join(m.name for m in EFFICIENCY.maps) + ")",
+    )  # fmt: skip
+    p.add_argument(
+        "--speeds-rpm", metavar="N1,N2,...", type=_numbers,
+        help="efficiency only: the grid's speeds, r/min (default "
+        + ",".join(f"{n:g}" for n in EFFICIENCY.speeds_rpm) + ")",
+    )  # fmt: skip
+    p.add_argument(
+        "--torques", metavar="T1,T2,...", type=_numbers,
+        help="efficiency only: the grid's torques, N·m (default "
+        + ",".join(f"{t:g}" for t in EFFICIENCY.torques) + ")",
     )  # fmt: skip
 
 
@@ -199,7 +217,7 @@ def main(a: argparse.Namespace) -> int:
     if table is None or not table.compute_ratios:
         refuse(a, f"times the compute ratios, which {a.scenario} has none of", "repeats")
     if a.scenario not in STUDIES:
-        studies = "the realism, fronts and robustness studies only"
+        studies = "the realism, fronts, robustness and efficiency studies only"
         refuse(a, f"serves {studies}, not {a.scenario}", "scheduler")
         refuse(a, f"runs {studies}, not {a.scenario}", "jobs")
     if a.scenario != ROBUSTNESS_STUDY:
@@ -217,6 +235,11 @@ def main(a: argparse.Namespace) -> int:
         )  # fmt: skip
         if not a.horizons:
             raise ConfigError(f"--no-horizons chooses the fronts study's runs, not {a.scenario}'s")
+    if a.scenario != EFFICIENCY_STUDY:
+        refuse(
+            a, f"chooses the efficiency study's runs, not {a.scenario}'s",
+            "maps", "speeds_rpm", "torques",
+        )  # fmt: skip
     settings = single_settings(a.set)
     update, close = runs_progress(f"reproduce {a.scenario}", quiet=a.json)
     try:
@@ -248,6 +271,9 @@ def main(a: argparse.Namespace) -> int:
             )
             if a.scenario == FRONTS_STUDY
             else None,
+            efficiency=EfficiencyChoice(a.maps, a.speeds_rpm, a.torques)
+            if a.scenario == EFFICIENCY_STUDY
+            else None,
             progress=update,
         )
     finally:
@@ -262,6 +288,8 @@ def main(a: argparse.Namespace) -> int:
         print_fronts(d)
     elif isinstance(d, RobustnessResult):
         print_robustness(d)
+    elif isinstance(d, EfficiencyResult):
+        print_efficiency(d)
     else:
         print_table(d)
     for f in d.figures:
@@ -274,8 +302,9 @@ def main(a: argparse.Namespace) -> int:
 
 
 def _settings(
-    d: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult | RobustnessResult,
-) -> None:
+    d: PaperTableResult | MTPAStudyResult | RealismResult | FrontsResult | RobustnessResult
+    | EfficiencyResult,
+) -> None:  # fmt: skip
     if d.duration is not None:
         windows = "; ".join(
             (f"{name} " if len(d.windows) > 1 else "")
@@ -389,6 +418,8 @@ def print_fronts(d: FrontsResult) -> None:
             f"  T* {t.torque_ref:g} N·m, psi* {t.flux_ref:g} Wb; the point's current "
             f"{t.base_current_a:.4g} A ({t.base_current}): TDD's base"
         )
+        if t.device:
+            print(f"  every run's inverter devices: {t.device} (plant.losses.device)")
         width = max(14, *(len(c.name) for c in t.curves)) + 1
         for c in t.curves:
             said = f"  (prediction: {c.prediction})" if c.prediction else ""
@@ -402,19 +433,17 @@ def print_fronts(d: FrontsResult) -> None:
                 )
                 tdd = METRICS["i_tdd_cont"].format(p.figures["i_tdd_cont"])
                 value = "" if c.knob == "ts" else f" {c.knob.rsplit('.', 1)[-1]} = {p.value:<8g}"
+                loss = METRICS[LOSS].format(p.figures[LOSS])
                 print(
                     f"    {marks} ts {1e6 * p.ts:>5g} µs{value} {cells} TDD {tdd} % "
-                    f"dT {100 * p.misses['torque']:+.2f} %" + ("" if p.holds else "  (off)")
+                    f"P_inv {loss} W dT {100 * p.misses['torque']:+.2f} %"
+                    + ("" if p.holds else "  (off)")
                 )
-        for key, ranked in t.ranking.items():
-            metric = METRICS[key]
-            print(f"  {metric.heading + ' (mean torque miss)':<{width + 2}}{heads}")
-            for name, values in t.at[key].items():
-                misses = t.torque_miss_at[key][name]
-                cells = "".join(f" {_cell(metric, v, m):>17}" for v, m in zip(values, misses))
-                print(f"    {name:<{width}}{cells}")
-            best = "".join(f" {(r[0] if r else '-'):>17}" for r in ranked)
-            print(f"    {'lowest':<{width}}{best}")
+        _front_tables(t.ranking, t.at, t.torque_miss_at, heads, width)
+        if t.loss_columns:
+            print(f"  at equal inverter loss ({METRICS[LOSS].title}):")
+            heads_w = "".join(f" {f'{w:g} W':>17}" for w in t.loss_columns)
+            _front_tables(t.ranking_loss, t.at_loss, t.torque_miss_at_loss, heads_w, width)
         if t.papers_ranking:
             print(f"  papers' ranking ({t.papers_source}): " + " < ".join(t.papers_ranking))
         if t.excluded:
@@ -424,7 +453,31 @@ def print_fronts(d: FrontsResult) -> None:
                     f"    {e.curve} ts {1e6 * e.ts:g} µs value {e.value:g} f_sw "
                     f"{f_sw.format(e.f_sw_hz)} kHz: {e.reason}"
                 )
-    print(f"(* on the front of {', '.join(METRICS[k].title for k in FRONT_RANKED)})")
+    print(f"(* on the front against f_sw of {', '.join(METRICS[k].title for k in FRONT_RANKED)})")
+    print(f"How computed: {d.how}")
+
+
+def print_efficiency(d: EfficiencyResult) -> None:
+    print(f"{d.scenario}: {d.paper}  ({d.engine}, {d.runs} runs, {d.wall_s:.0f} s)")
+    _settings(d)
+    print(d.caption)
+    print("every run with " + ", ".join(f"{k} = {v}" for k, v in d.every_run.items()))
+    heads = "".join(f" {n:>6g}" for n in d.speeds_rpm)
+    for m in d.maps:
+        for key, scale in (("efficiency", 100.0), (LOSS, 1.0)):
+            metric = METRICS[key]
+            print()
+            print(f"{m.name}: {metric.title} ({metric.unit}) by torque (N·m) and speed (r/min)")
+            print(f"  {'':>6}{heads}")
+            for t, row in zip(d.torques, m.grid(key, d.speeds_rpm, d.torques)):
+                cells = "".join(f" {'-' if v is None else f'{scale * v:.4g}':>6}" for v in row)
+                print(f"  {t:>6g}{cells}")
+    excluded = d.excluded()
+    if excluded:
+        print()
+        print(f"left the operating point ({len(excluded)} points, blank on their maps):")
+        for name, p in excluded:
+            print(f"  {name} {p.speed_rpm:g} r/min {p.torque:g} N·m: {p.reason}")
     print(f"How computed: {d.how}")
 
 
@@ -458,6 +511,25 @@ def print_robustness(d: RobustnessResult) -> None:
                     cells.append(f" {t.format(v) + ratio:>20}")
                 print(f"    {s:<20}" + "".join(cells))
     print(f"How computed: {d.how}")
+
+
+def _front_tables(
+    ranking: dict[str, list[list[str]]],
+    at: dict[str, dict[str, list[float | None]]],
+    misses_at: dict[str, dict[str, list[float | None]]],
+    heads: str,
+    width: int,
+) -> None:
+    """Each ranked figure's fronts read at the columns ``heads`` and the lowest there."""
+    for key, ranked in ranking.items():
+        metric = METRICS[key]
+        print(f"  {metric.heading + ' (mean torque miss)':<{width + 2}}{heads}")
+        for name, values in at[key].items():
+            misses = misses_at[key][name]
+            cells = "".join(f" {_cell(metric, v, m):>17}" for v, m in zip(values, misses))
+            print(f"    {name:<{width}}{cells}")
+        best = "".join(f" {(r[0] if r else '-'):>17}" for r in ranked)
+        print(f"    {'lowest':<{width}}{best}")
 
 
 def _cell(metric: Metric, value: float | None, miss: float | None) -> str:

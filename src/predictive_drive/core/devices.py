@@ -34,11 +34,13 @@ from ..errors import ConfigError
 
 __all__ = [
     "DEVICE_TYPES",
+    "Commutations",
     "Device",
     "EnergyTable",
     "Grid",
     "Line",
     "bracket",
+    "commutations",
     "grid_value",
     "Part",
     "load_device",
@@ -534,3 +536,45 @@ def _checked(
 
 def _kind(value: Any) -> str:
     return "nothing" if value is None else f"{type(value).__name__} {value!r}"[:60]
+
+
+# -- One leg's commutation, as a controller predicts its energy (the loss-aware cost of the
+# finite-control-set laws, docs/physics.md#a-loss-aware-switching-cost): the plant's rule of which
+# device turns on or off at a change of level (docs/physics.md#the-devices), at a given current --
+
+
+@dataclass(frozen=True)
+class Commutations:
+    """A device's switching energies at one junction temperature and DC-link voltage, by what
+    a leg's change of level does to the current ``i`` (A, out of the leg): where the change
+    makes a transistor take the current forward — the leg rising with i > 0, falling with
+    i < 0 — its E_on and the recovery E_rr of the other position's diode; else the transistor
+    that carried it turns off, E_off (a change the current makes itself, a diode taking over
+    or a MOSFET's reverse channel, costs nothing more)."""
+
+    e_on: Grid | None
+    e_off: Grid | None
+    e_rr: Grid | None
+
+    def taking(self, i: float) -> float:
+        """E_on + E_rr (J) at ``i`` A: a transistor takes the current."""
+        return grid_value(self.e_on, i) + grid_value(self.e_rr, i)
+
+    def leaving(self, i: float) -> float:
+        """E_off (J) at ``i`` A: the transistor that carried the current turns off."""
+        return grid_value(self.e_off, i)
+
+    def energy(self, i: float, *, rising: bool) -> float:
+        """The energy (J) of a leg's change of level (``rising``: low to high) carrying ``i``
+        A out of the leg."""
+        takes = i > 0.0 if rising else i < 0.0
+        return self.taking(i) if takes else self.leaving(i)
+
+
+def commutations(device: Device, *, t_j: float, u_dc: float) -> Commutations:
+    """The switching energies of ``device`` at ``t_j`` °C and ``u_dc`` V, by commutation."""
+    return Commutations(
+        device.switch.energy_grid("e_on", t_j, u_dc),
+        device.switch.energy_grid("e_off", t_j, u_dc),
+        device.diode.energy_grid("e_rr", t_j, u_dc),
+    )

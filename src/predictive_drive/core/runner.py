@@ -96,7 +96,9 @@ def build_plant(
 
 def build_controller(scenario: Scenario) -> Controller:
     """The controller of a scenario's torque_controller section."""
-    return make_controller(scenario.family, scenario.controller, ts=scenario.ts)
+    return make_controller(
+        scenario.family, scenario.controller, ts=scenario.ts, device=scenario.controller_device
+    )
 
 
 def build(scenario: Scenario) -> Components:

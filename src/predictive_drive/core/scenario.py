@@ -247,6 +247,8 @@ class Scenario:
     draw: str = ""
     #: the inverter's devices, read from the file ``plant.losses.device`` names (None: none)
     device: Device | None = None
+    #: the devices the torque controller's ``device`` names (its loss-aware cost), read
+    controller_device: Device | None = None
 
     def __post_init__(self) -> None:
         self.plant.check_timing(self.ts)

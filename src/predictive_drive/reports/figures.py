@@ -27,6 +27,7 @@ from ..dependencies import missing
 __all__ = [
     "Run",
     "compare_figures",
+    "efficiency_figures",
     "fronts_figures",
     "losses_figure",
     "realism_figures",
@@ -391,23 +392,27 @@ CURVE_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h", "p", "d"
 
 
 def fronts_figures(result: Any, skipped: list[str] | None = None) -> dict[str, Any]:
-    """One figure per operating point of a fronts study (``result.points``, each with
-    ``point``, ``caption`` and ``curves`` of ``points``): a panel per ranked figure (the
-    torque's ripple about its mean and against T*, the current's THD and TDD) against f_sw, log
+    """Per operating point of a fronts study (``result.points``, each with ``point``,
+    ``caption`` and ``curves`` of ``points``) a figure against f_sw (``<point>``) and, where its
+    runs booked losses, one against the inverter's loss (``<point>_loss``): a panel per ranked
+    figure (the torque's ripple about its mean and against T*, the current's THD and TDD), log
     axes; per curve, in its own colour and marker, its points (hollow where the run left the
     operating point) and its front as a line (dashed for field-oriented control) drawn only
-    between the neighbours the table reads between (:func:`~.fronts.joined`): no line
-    across a gap it leaves blank. A panel with no positive figure says so instead of a log
-    axis (matplotlib cannot scale one), and a figure with nothing in any panel is not drawn:
-    ``skipped`` takes a note naming it."""
-    from .fronts import joined
+    between the neighbours the table reads between (:func:`~.fronts.joined` on their f_sw and
+    figure, against either axis): no line across a gap it leaves blank. A panel with no positive
+    figure says so instead of a log axis (matplotlib cannot scale one), and a figure with nothing
+    in any panel is not drawn: ``skipped`` takes a note naming it."""
+    from .fronts import LOSS, joined
 
-    plt = _pyplot()
+    def one(a: Any, b: Any, key: str) -> bool:
+        pa, pb = sorted([(a.figures["f_sw_hz"], a.figures[key]), (b.figures["f_sw_hz"],
+                                                                  b.figures[key])])  # fmt: skip
+        return joined(pa, pb)
+
     figs: dict[str, Any] = {}
-    f_sw = METRICS["f_sw_hz"]
     keys = tuple(result.points[0].at) if result.points else ()
     for table in result.points:
-        drawable = {k: _positive(table, k) for k in keys}
+        drawable = {k: _positive(table, k, "f_sw_hz") for k in keys}
         if not any(drawable.values()):
             if skipped is not None:
                 skipped.append(
@@ -415,65 +420,157 @@ def fronts_figures(result: Any, skipped: list[str] | None = None) -> dict[str, A
                     "put on log axes (a run too short to switch?)"
                 )
             continue
-        fig, axes = plt.subplots(2, (len(keys) + 1) // 2, figsize=(12, 8.5), squeeze=False)
-        for ax, key in zip(axes.flat, keys):
-            shown = METRICS[key]
-            if not drawable[key]:
-                ax.text(0.5, 0.5, f"{shown.title}: no run has a positive figure",
-                        ha="center", va="center", transform=ax.transAxes, fontsize=8)  # fmt: skip
-                ax.set(xlabel=f_sw.axis, ylabel=shown.axis)
-                continue
-            for i, curve in enumerate(table.curves):
-                style = {
-                    "color": CURVE_COLOURS[i % len(CURVE_COLOURS)],
-                    "marker": CURVE_MARKERS[i % len(CURVE_MARKERS)],
-                }
-                held = [p for p in curve.points if p.holds]
-                lost = [p for p in curve.points if not p.holds]
-                ax.plot(
-                    [f_sw.scale * p.figures["f_sw_hz"] for p in held],
-                    [shown.scale * p.figures[key] for p in held],
-                    ls="none", markersize=5, label=curve.name, **style,
-                )  # fmt: skip
-                if lost:
-                    ax.plot(
-                        [f_sw.scale * max(p.figures["f_sw_hz"], 1.0) for p in lost],
-                        [shown.scale * p.figures[key] for p in lost],
-                        ls="none", mfc="none", markersize=5, alpha=0.6, **style,
-                    )  # fmt: skip
-                front = [(p.figures["f_sw_hz"], p.figures[key]) for p in curve.front(key)]
-                dashed = "--" if curve.strategy.startswith(("foc", "ifoc")) else "-"
-                for a, b in zip(front, front[1:]):
-                    if joined(a, b):
-                        ax.plot(
-                            [f_sw.scale * a[0], f_sw.scale * b[0]],
-                            [shown.scale * a[1], shown.scale * b[1]],
-                            dashed, color=style["color"], lw=1.2,
-                        )  # fmt: skip
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.set(xlabel=f_sw.axis, ylabel=shown.axis)
-            ax.grid(True, which="both", alpha=0.3)
-        for ax in list(axes.flat)[len(keys) :]:
-            ax.set_visible(False)
-        axes.flat[0].legend(fontsize=7, ncol=2)
-        fig.suptitle(
-            f"{table.caption}; hollow: left the operating point; lines: the fronts",
-            fontsize=9,
+        figs[table.point] = _fronts_figure(
+            table, keys, drawable, "f_sw_hz", lambda c, k: c.front(k), one, "lines: the fronts"
         )
-        fig.tight_layout()
-        figs[table.point] = fig
+        by_loss = {k: _positive(table, k, LOSS) for k in keys}
+        if any(by_loss.values()):
+            figs[f"{table.point}_loss"] = _fronts_figure(
+                table, keys, by_loss, LOSS, lambda c, k: c.loss_front(k), one,
+                f"against the inverter's loss ({table.device}; the axis spans the held runs); "
+                "lines: the fronts",
+            )  # fmt: skip
     return figs
 
 
-def _positive(table: Any, key: str) -> bool:
-    """Some run of a fronts table has a positive f_sw and a positive, finite ``key``: a log axis
-    has something to scale."""
+def _positive(table: Any, key: str, x: str) -> bool:
+    """Some run of a fronts table has a positive, finite ``x`` and ``key``: a log axis has
+    something to scale."""
     return any(
-        math.isfinite(p.figures[key]) and p.figures[key] > 0 and p.figures["f_sw_hz"] > 0
+        math.isfinite(p.figures[key])
+        and p.figures[key] > 0
+        and math.isfinite(p.figures.get(x, math.nan))
+        and p.figures[x] > 0
         for c in table.curves
         for p in c.points
     )
+
+
+def _fronts_figure(
+    table: Any,
+    keys: Sequence[str],
+    drawable: dict[str, bool],
+    x: str,
+    front_of: Any,
+    one: Any,
+    what: str,
+) -> Any:
+    """One operating point's fronts against figure ``x`` (a metric key): ``front_of(curve,
+    key)`` its front's points, ``one(a, b, key)`` whether two neighbours are one stretch; a
+    panel whose key is not ``drawable`` says so in words."""
+    plt = _pyplot()
+    shown_x = METRICS[x]
+    floor = 1.0 if x == "f_sw_hz" else 1e-2  #: a run that stopped switching, on log axes
+    held_x = [
+        v for c in table.curves for p in c.points if p.holds and math.isfinite(v := p.figures[x])
+    ]
+    fig, axes = plt.subplots(2, (len(keys) + 1) // 2, figsize=(12, 8.5), squeeze=False)
+    for ax, key in zip(axes.flat, keys):
+        shown = METRICS[key]
+        if not drawable[key]:
+            ax.text(0.5, 0.5, f"{shown.title}: no run has a positive figure",
+                    ha="center", va="center", transform=ax.transAxes, fontsize=8)  # fmt: skip
+            ax.set(xlabel=shown_x.axis, ylabel=shown.axis)
+            continue
+        for i, curve in enumerate(table.curves):
+            style = {
+                "color": CURVE_COLOURS[i % len(CURVE_COLOURS)],
+                "marker": CURVE_MARKERS[i % len(CURVE_MARKERS)],
+            }
+            held = [p for p in curve.points if p.holds]
+            lost = [p for p in curve.points if not p.holds]
+            ax.plot(
+                [shown_x.scale * p.figures[x] for p in held],
+                [shown.scale * p.figures[key] for p in held],
+                ls="none", markersize=5, label=curve.name, **style,
+            )  # fmt: skip
+            if lost:
+                ax.plot(
+                    [shown_x.scale * max(p.figures[x], floor) for p in lost],
+                    [shown.scale * p.figures[key] for p in lost],
+                    ls="none", mfc="none", markersize=5, alpha=0.6, **style,
+                )  # fmt: skip
+            front = front_of(curve, key)
+            dashed = "--" if curve.strategy.startswith(("foc", "ifoc")) else "-"
+            for a, b in zip(front, front[1:]):
+                if one(a, b, key):
+                    ax.plot(
+                        [shown_x.scale * a.figures[x], shown_x.scale * b.figures[x]],
+                        [shown.scale * a.figures[key], shown.scale * b.figures[key]],
+                        dashed, color=style["color"], lw=1.2,
+                    )  # fmt: skip
+        # a narrow range of losses (a SiC drive's, nearly all conduction) on a linear axis
+        narrow = x != "f_sw_hz" and held_x and max(held_x) < 3.0 * min(held_x)
+        ax.set_xscale("linear" if narrow else "log")
+        ax.set_yscale("log")
+        ax.set(xlabel=shown_x.axis, ylabel=shown.axis)
+        ax.grid(True, which="both", alpha=0.3)
+        if x != "f_sw_hz" and held_x:  # a run that lost the point may have lost the inverter
+            ax.set_xlim(shown_x.scale * min(held_x) / 1.1, shown_x.scale * max(held_x) * 1.1)
+    for ax in list(axes.flat)[len(keys) :]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f"{table.caption}\nhollow: left the operating point; {what}", fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def efficiency_figures(result: Any) -> dict[str, Any]:
+    """The efficiency study's maps (``result.maps`` over ``result.speeds_rpm`` ×
+    ``result.torques``): one column per map, η (%) above and the inverter's loss (W) below, as
+    colour maps on one scale per row with each cell's value written in it; a point that left
+    its operating point is blank."""
+    plt = _pyplot()
+    speeds, torques = list(result.speeds_rpm), list(result.torques)
+    rows = (("efficiency", "viridis"), ("p_inverter", "magma_r"))
+    n = max(len(result.maps), 1)
+    fig, axes = plt.subplots(
+        2, n, figsize=(4.6 * n + 1.2, 8.0), squeeze=False, layout="constrained"
+    )
+    for r, (key, cmap) in enumerate(rows):
+        shown = METRICS[key]
+        grids = [
+            np.array(
+                [
+                    [np.nan if v is None else shown.scale * v for v in row]
+                    for row in m.grid(key, speeds, torques)
+                ]
+            )  # fmt: skip
+            for m in result.maps
+        ]
+        finite = [g[np.isfinite(g)] for g in grids]
+        values = np.concatenate(finite) if finite else np.zeros(0)
+        lo, hi = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
+        mesh = None
+        for ax, m, g in zip(axes[r], result.maps, grids):
+            mesh = ax.pcolormesh(
+                _edges(speeds), _edges(torques), np.ma.masked_invalid(g), cmap=cmap, vmin=lo,
+                vmax=hi,
+            )  # fmt: skip
+            for i, t in enumerate(torques):
+                for j, s in enumerate(speeds):
+                    if np.isfinite(g[i, j]):
+                        red, green, blue, _ = mesh.cmap(mesh.norm(g[i, j]))
+                        dark = 0.299 * red + 0.587 * green + 0.114 * blue < 0.5
+                        ax.text(
+                            s, t, f"{g[i, j]:.3g}", ha="center", va="center", fontsize=5.5,
+                            color="white" if dark else "black",
+                        )  # fmt: skip
+            ax.set(title=f"{m.name}: {shown.title}", xlabel="speed (r/min)", ylabel="torque (N·m)")
+        if mesh is not None:
+            fig.colorbar(mesh, ax=list(axes[r]), label=shown.axis, shrink=0.9)
+    fig.suptitle(f"{result.caption}; blank: left the operating point", fontsize=9)
+    return {"maps": fig}
+
+
+def _edges(centres: Sequence[float]) -> np.ndarray:
+    """Cell edges around ascending grid ``centres``: midway between neighbours, the ends half a
+    step out (a single centre: ±10 %)."""
+    c = np.asarray(centres, dtype=float)
+    if c.size == 1:
+        return np.array([0.9 * c[0], 1.1 * c[0]])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.concatenate(([c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]))
 
 
 def save(figs: dict[str, Any], directory: str | Path, prefix: str = "") -> list[Path]:

@@ -20,7 +20,17 @@ curves, each a strategy with the setting it is traced over and the values. Knobs
   holding the period's mean current (``current_target: period_mean``,
   docs/physics.md#field-oriented-control-and-mtpa);
 - the long horizons (mptc at N = 2, 3, 5 over λ_sw; direct_mpc at N = 1, 3, 5, 10 over its
-  switching weight λ_u), one curve per N.
+  switching weight λ_u), one curve per N;
+- mptc over its loss-aware weight ``torque_controller.lambda_e`` (``mptc lambda_e``: each
+  candidate's commutations priced in joules by the point's device file,
+  docs/physics.md#a-loss-aware-switching-cost), at the papers' period.
+
+Every run has the drive's own inverter devices (``plant.losses.device``: the Si IGBT module
+for paper 000's induction motor, the SiC MOSFET for the PMSMs, docs/physics.md#the-devices)
+with the losses section's defaults (junction temperatures fed back every millisecond), so each
+point has its inverter loss beside its f_sw: the fronts are read at equal switching frequency
+(:data:`COMMON_FSW`) and at equal inverter loss (each point's :attr:`OperatingPoint.loss_columns`,
+W), in one regime only (:func:`loss_reading`).
 
 A point is on a front only if it holds the operating point: its mean torque within
 :data:`TOLERANCE` of T*, its mean |ψ_s| of ψ* and its current's fundamental of the operating
@@ -30,13 +40,17 @@ point's current (the base of the TDD), all in continuous time.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
     "COMMON_FSW",
     "DIRECT_HORIZONS",
+    "IGBT",
+    "LOSS",
+    "LOSS_SNAP",
+    "SIC",
     "FRONTS",
     "KNOBS",
     "MAX_GAP",
@@ -54,6 +68,9 @@ __all__ = [
     "OperatingPoint",
     "interpolate",
     "joined",
+    "loss_interpolate",
+    "loss_reading",
+    "mixed",
     "pareto",
     "reading",
 ]
@@ -65,8 +82,11 @@ COMMON_FSW = (0.5e3, 1e3, 2e3, 3e3, 4e3, 5e3, 7e3, 10e3)
 #: distortion over its own fundamental (THD) and over the operating point's current (TDD)
 SHOWN = (
     "f_sw_hz", "t_ripple_cont", "t_rmse_cont", "i_thd_cont", "i_tdd_cont", "t_mean_error_cont",
-    "psi_mean_error_cont", "i_fundamental_cont", "psi_rmse_cont", "t_rmse",
+    "psi_mean_error_cont", "i_fundamental_cont", "psi_rmse_cont", "t_rmse", "p_inverter",
+    "p_cond_t", "p_cond_d", "p_sw_t", "p_sw_d", "tj_max",
 )  # fmt: skip
+#: the figure the fronts are read against besides f_sw: the inverter's losses (metric key)
+LOSS = "p_inverter"
 RANKED = ("t_ripple_cont", "t_rmse_cont", "i_thd_cont", "i_tdd_cont")
 #: what holding the operating point asks of a run (shares): its mean torque against T*, its
 #: mean |ψ_s| against ψ*, its current's fundamental against the operating point's current
@@ -78,6 +98,9 @@ MAX_GAP = 2.0
 MAX_SLOPE = 3.0
 #: a front's point within this share of a column's frequency is that column's value as measured
 SNAP_SHARE = 0.03
+#: a front's point within this share of a loss column is that column's value as measured (the
+#: SiC drives' losses span a tenth of their value: closer than the f_sw columns)
+LOSS_SNAP = 0.005
 #: the papers' control period, s: the finite-control-set curves' values all run at it
 PAPERS_TS = 5e-5
 #: the other periods the finite-control-set curves run at, s, each over its smallest values:
@@ -93,8 +116,13 @@ PREDICTION = "rotor_motion"
 KNOBS: dict[str, tuple[float, float]] = {
     "torque_controller.lambda_sw": (0.0, 1e3),
     "torque_controller.lambda_u": (1e-9, 1e3),
+    "torque_controller.lambda_e": (0.0, 1e6),
     "ts": (1e-5, 1e-2),
 }
+#: the drives' inverter devices (config/devices): the Si IGBT module for paper 000's induction
+#: motor (582 V DC link), the SiC MOSFET for the PMSMs (312 V, 400 V)
+IGBT = "semikron_skm150gb124d"
+SIC = "wolfspeed_c3m0065100j"
 
 _LAMBDA = "torque_controller.lambda_sw"
 #: 0.5 to 20 kHz carriers, no two more than twice apart
@@ -137,11 +165,13 @@ def joined(
 def reading(
     front: Sequence[tuple[float, float]], f: float, *, snap: float = SNAP_SHARE,
     max_gap: float = MAX_GAP, max_slope: float = MAX_SLOPE,
+    joins: Callable[[int], bool] | None = None,
 ) -> tuple[int, int, float] | None:  # fmt: skip
     """How the front (f_sw, figure) pairs, rising in f_sw, give its value at ``f`` Hz: (i, j,
     s), the value being front[i]'s and front[j]'s mixed by s in log f_sw — a point within
     ``snap`` of ``f`` as measured (i = j, s = 0), else the two neighbours that enclose ``f`` if
-    :func:`joined`; None where the front does not say."""
+    :func:`joined` (``joins(i)``, where given: whether front[i] and front[i + 1] are one
+    stretch); None where the front does not say."""
     if not front:
         return None
     near = min(range(len(front)), key=lambda i: abs(math.log(front[i][0] / f)))
@@ -149,7 +179,10 @@ def reading(
         return near, near, 0.0
     for i, ((f0, _), (f1, _)) in enumerate(zip(front, front[1:])):
         if f0 < f < f1:
-            if not joined(front[i], front[i + 1], max_gap=max_gap, max_slope=max_slope):
+            one = joins(i) if joins is not None else joined(
+                front[i], front[i + 1], max_gap=max_gap, max_slope=max_slope
+            )  # fmt: skip
+            if not one:
                 return None
             return i, i + 1, math.log(f / f0) / math.log(f1 / f0)
     return None
@@ -161,7 +194,38 @@ def interpolate(
 ) -> float | None:  # fmt: skip
     """The front's figure at ``f`` Hz (:func:`reading`): log-log between the neighbours
     (linear where a figure is not positive); None where the front does not say."""
-    r = reading(front, f, snap=snap, max_gap=max_gap, max_slope=max_slope)
+    return mixed(front, reading(front, f, snap=snap, max_gap=max_gap, max_slope=max_slope))
+
+
+def loss_reading(
+    front: Sequence[tuple[float, float, float]], w: float, *, snap: float = LOSS_SNAP
+) -> tuple[int, int, float] | None:
+    """:func:`reading` of a front against the inverter's loss: ``front`` of (loss W, figure,
+    f_sw Hz) rising in loss, read at ``w`` W — a point within ``snap`` of ``w`` as measured,
+    else between the two neighbours that enclose ``w`` if they are one regime: :func:`joined`
+    as the f_sw columns take it, on their own (f_sw, figure) pairs (at most :data:`MAX_GAP`
+    apart in f_sw, the figure stepping by no more than the :data:`MAX_SLOPE` power of their
+    f_sw ratio). The loss of a finite-control-set law moves little as its f_sw halves (the
+    conduction loss stays), so the step is judged where the regimes show: against f_sw."""
+
+    def one_regime(i: int) -> bool:
+        a, b = sorted([(front[i][2], front[i][1]), (front[i + 1][2], front[i + 1][1])])
+        return joined(a, b)
+
+    return reading([(x, v) for x, v, _ in front], w, snap=snap, joins=one_regime)
+
+
+def loss_interpolate(
+    front: Sequence[tuple[float, float, float]], w: float, *, snap: float = LOSS_SNAP
+) -> float | None:
+    """The front's figure at ``w`` W of inverter loss (:func:`loss_reading`), log-log between
+    the neighbours; None where the front does not say."""
+    return mixed([(x, v) for x, v, _ in front], loss_reading(front, w, snap=snap))
+
+
+def mixed(front: Sequence[tuple[float, float]], r: tuple[int, int, float] | None) -> float | None:
+    """The value of a :func:`reading` ``r`` of ``front``: log-log between its two points
+    (linear where a figure is not positive); None for no reading."""
     if r is None:
         return None
     i, j, s = r
@@ -222,6 +286,10 @@ class OperatingPoint:
     papers_source: str = ""
     #: the point's finite-control-set scenario: where a controller of one's own runs
     scenario: str = ""
+    #: the drive's inverter devices, every run's ``plant.losses.device`` ('': no losses)
+    device: str = ""
+    #: the inverter losses (W) the fronts are read and ranked at, chosen for the point's range
+    loss_columns: tuple[float, ...] = ()
 
 
 def _fcs(
@@ -245,6 +313,15 @@ def _horizons(
     )  # fmt: skip
 
 
+def _loss_aware(scenario: str, values: tuple[float, ...], device: str) -> Curve:
+    """mptc over its loss-aware weight λ_e, the controller pricing commutations with the
+    point's own device file, at the papers' period."""
+    return Curve(
+        "mptc", scenario, "torque_controller.lambda_e", values,
+        {"torque_controller.device": device}, label="mptc lambda_e",
+    )  # fmt: skip
+
+
 _LAMBDA_U = (1e-4, 1e-3, 3e-3, 0.01, 0.03, 0.1, 0.3, 1.0)
 #: the horizons the fronts trace: mptc's and direct_mpc's
 MPTC_HORIZONS = (2, 3, 5)
@@ -258,6 +335,16 @@ _IM_LAMBDA = {
 }
 _PMSM_LAMBDA = (0.0, 0.005, 0.01, 0.02, 0.03, 0.04)
 _PMSM = ("mptc", "simplified1", "simplified2", "simplified3")
+#: the loss-aware weights λ_e (N·m/J for the IM, 1/J for the PMSMs' normalised cost): from the
+#: papers' law to about a third of its switching loss
+_IM_LAMBDA_E = (0.0, 50.0, 100.0, 150.0, 200.0, 250.0, 300.0)
+_PMSM_LAMBDA_E = (0.0, 300.0, 600.0, 1000.0, 1500.0, 2000.0)
+#: the inverter losses each point's fronts are read at, W (the range its runs span)
+#: (the IGBT's switching losses are most of the IM's; the SiC drives' losses are nearly all
+#: conduction, so their columns lie close together)
+_IM_LOSSES = (8.0, 10.0, 12.0, 13.0, 14.0, 15.0, 20.0, 30.0)
+_IPMSM_LOSSES = (19.4, 19.6, 19.8, 20.0, 20.5, 21.0)
+_HS_IPMSM_LOSSES = (1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 
 FRONTS: dict[str, OperatingPoint] = {
     "im_steady": OperatingPoint(
@@ -265,17 +352,21 @@ FRONTS: dict[str, OperatingPoint] = {
         (
             *_fcs("im_steady", ("mptc", "mptc_db", "db_mptc"), _IM_LAMBDA),
             *_horizons("mptc", "im_steady", _LAMBDA, _IM_LAMBDA["mptc"], MPTC_HORIZONS),
+            _loss_aware("im_steady", _IM_LAMBDA_E, IGBT),
             Curve("ifoc", "im_steady_foc", "ts", _FOC_TS),
         ),
         ("db_mptc", "mptc_db", "mptc"),
         "paper 000 Table 2, T_RMSE",
         "im_steady",
+        IGBT,
+        _IM_LOSSES,
     ),
     "ipmsm_steady": OperatingPoint(
         "paper 001's interior PMSM (Li et al., CTA 2023, §6) held at 1000 r/min, T* = 15 N·m",
         (
             *_fcs("ipmsm_steady", _PMSM, dict.fromkeys(_PMSM, _PMSM_LAMBDA)),
             *_horizons("mptc", "ipmsm_steady", _LAMBDA, _PMSM_LAMBDA, MPTC_HORIZONS),
+            _loss_aware("ipmsm_steady", _PMSM_LAMBDA_E, SIC),
             *_horizons(
                 "direct_mpc",
                 "ipmsm_steady_mpc",
@@ -288,6 +379,8 @@ FRONTS: dict[str, OperatingPoint] = {
         ("mptc", "simplified2", "simplified1", "simplified3"),
         "paper 001 Table 9, T_rip",
         "ipmsm_steady",
+        SIC,
+        _IPMSM_LOSSES,
     ),
     "hs_ipmsm_steady": OperatingPoint(
         "paper 002's high-speed interior PMSM (Yuan et al., JMEE 2018) held at 100 rad/s, "
@@ -295,6 +388,7 @@ FRONTS: dict[str, OperatingPoint] = {
         (
             *_fcs("hs_ipmsm_steady", _PMSM, dict.fromkeys(_PMSM, _PMSM_LAMBDA + (0.06,))),
             *_horizons("mptc", "hs_ipmsm_steady", _LAMBDA, _PMSM_LAMBDA + (0.06,), MPTC_HORIZONS),
+            _loss_aware("hs_ipmsm_steady", _PMSM_LAMBDA_E, SIC),
             *_horizons(
                 "direct_mpc",
                 "hs_ipmsm_steady_mpc",
@@ -305,5 +399,7 @@ FRONTS: dict[str, OperatingPoint] = {
             Curve("foc_formula", "hs_ipmsm_steady_foc", "ts", _FOC_TS),
         ),
         scenario="hs_ipmsm_steady",
+        device=SIC,
+        loss_columns=_HS_IPMSM_LOSSES,
     ),
 }

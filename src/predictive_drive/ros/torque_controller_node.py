@@ -13,7 +13,7 @@ from rclpy.duration import Duration
 from rclpy.parameter import Parameter
 
 from ..codec import CODECS
-from ..config import FAMILY_KEY, family_of, section_class
+from ..config import FAMILY_KEY, controller_device_of, family_of, section_class
 from ..core.control import CONTROLLERS, make_controller
 from ..core.control.base import SWITCHABLE
 from ..core.fields import Quantity, check_fields, quantity
@@ -56,7 +56,8 @@ class TorqueControllerNode(WatchedNode):
         run, params = self.load_params()
         self.links = CommandReaders(**self.declare_fields(CommandReaders))
         self.n = run.steps
-        self.ctrl = make_controller(self.family, params, ts=run.ts)
+        device = controller_device_of(params, self._where())  # the loss-aware cost's
+        self.ctrl = make_controller(self.family, params, ts=run.ts, device=device)
         self.pub_cmd = self.publisher("command")
         self.lockstep = [self.pub_cmd]
         self._states: dict[int, State] = {}

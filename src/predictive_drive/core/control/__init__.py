@@ -23,6 +23,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Any
 
+from ..devices import Device
 from ..signals import EXTERNAL
 from .base import Controller, Decision, Strategy, VectorController, instantiate
 from .foc_im import FOCIMController, FOCIMParams
@@ -97,6 +98,12 @@ def make_strategy(family: str, name: str) -> Any:
     return instantiate(family, controller_class(family).strategies, name)
 
 
-def make_controller(family: str, params: Any, *, ts: float) -> Controller:
-    """The controller of a scenario's torque_controller section (every engine and node alike)."""
-    return controller_class(family)(params, ts=ts)
+def make_controller(
+    family: str, params: Any, *, ts: float, device: Device | None = None
+) -> Controller:
+    """The controller of a scenario's torque_controller section (every engine and node alike);
+    ``device``: the device file its ``device`` names, read (the loss-aware cost's energies)."""
+    cls = controller_class(family)
+    if device is None:
+        return cls(params, ts=ts)
+    return cls(params, ts=ts, device=device)  # type: ignore[call-arg]

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ..devices import Device
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.induction import InductionCoefficients, InductionMotor
@@ -38,6 +39,14 @@ from .base import (
     lambda_sw_field,
     rows,
     search_field,
+)
+from .energy import (
+    SwitchingEnergy,
+    check_energy,
+    device_field,
+    device_tj_field,
+    lambda_e_field,
+    switching_energy,
 )
 from .kernels import IM_STAGE, BranchAndBound, compiled_branch_and_bound
 from .search import Expand, SearchResult, branch_and_bound
@@ -86,6 +95,7 @@ class IMPrediction:
         "active",
         "_z",
         "effort",
+        "energy",
         "code",
         "sw",
         "sw_zero",
@@ -104,6 +114,7 @@ class IMPrediction:
         lam: float,
         a0_printed: bool,
         effort: SwitchingEffort | None = None,
+        energy: SwitchingEnergy | None = None,
     ) -> None:
         self.c = c
         self.ts = ts
@@ -113,6 +124,10 @@ class IMPrediction:
         #: the switching effort (None: λ_sw = 0) and, per candidate, its cost from the state in
         #: force (``code``): ``sw`` for the whole period, ``sw_zero`` then the zero vector
         self.effort = effort
+        #: the loss-aware cost (None: λ_e = 0): each candidate's predicted switching energy,
+        #: added to ``sw`` and ``sw_zero`` by :meth:`switching` at the current ``i``
+        self.energy = energy
+        self.i = 0j
         self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
         self.budget = 0  #: stage costs a search may evaluate (0: no limit)
         #: the compiled branch and bound (None: search.branch_and_bound), with V0..V6 and the
@@ -126,14 +141,28 @@ class IMPrediction:
         self.switching((0, 0, 0))
 
     def switching(self, switches: tuple[int, int, int]) -> None:
-        """The switching state in force (the one the candidates' commutations count from)."""
+        """The switching state in force (the one the candidates' commutations count from); with
+        the loss-aware cost, after :meth:`prepare` (the commutations carry its current)."""
         e = self.effort
-        if e is None:
+        if e is None and self.energy is None:
             self.code = 0
             self.sw = self.sw_zero = NO_EFFORT
             return
-        self.code = code = e.code(switches)
-        self.sw, self.sw_zero = e.full[code], e.then_zero[code]
+        self.code = code = SwitchingEffort.code(switches)
+        if e is not None:
+            self.sw, self.sw_zero = e.full[code], e.then_zero[code]
+        else:
+            self.sw = self.sw_zero = NO_EFFORT
+        if self.energy is not None:
+            spent = self.energy.full(code, self.i)
+            self.sw = tuple(a + b for a, b in zip(self.sw, spent))
+            self.sw_zero = tuple(a + b for a, b in zip(self.sw_zero, spent))
+
+    def current_at(self, u: complex, t_u: float) -> complex:
+        """The current (A, αβ) predicted ``t_u`` s into the period under ``u`` (V): the
+        forward-Euler step's straight line, where a vector applied for part of the period
+        returns to the zero vector."""
+        return self.i + (t_u / self.ts) * (self.i_free - self.i + self.gain_i * u)
 
     def prepare(self, i: complex, psi: complex, omega_m: float, volts: tuple[complex, ...]) -> None:
         a_ii, b_ip, cw, rs, p, tk, _, _ = self.c
@@ -214,7 +243,7 @@ class MPTCDB:
     name = "mptc_db"
 
     def decide(self, m: IMPrediction, torque_ref: float, flux_ref: float) -> Decision:
-        if m.effort is None:
+        if m.effort is None and m.energy is None:
             n = _argmin_full_period(m, torque_ref, flux_ref)
             if n == 0:
                 return _FULL_PERIOD[0]
@@ -241,7 +270,7 @@ class DBMPTC:
         tk = m.c.torque_k
         z = m._z
         zr, zi = z.real, z.imag
-        sw, sw_zero = m.sw, m.sw_zero
+        sw, sw_zero, energy = m.sw, m.sw_zero, m.energy
         # V0: applied for the whole period, t_u = Ts
         best = abs(torque_ref - (te + a0ts)) + lam * abs(flux_ref - abs(psi_free)) + sw[0]
         best_n, best_t = 0, ts
@@ -260,6 +289,8 @@ class DBMPTC:
             # vector and then the zero vector (+ 0.0 when λ_sw = 0: the same cost, bit for bit)
             g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
             g += sw[n] if t_u >= ts else sw_zero[n] if t_u > 0.0 else sw[0]
+            if energy is not None and 0.0 < t_u < ts:  # its return to zero, at t_u's current
+                g += energy.back(n, m.current_at(u, t_u))
             if g < best:
                 best, best_n, best_t, raw_best = g, n, t_u, t_raw
         return new_record(Decision, (best_n, best_t / ts, raw_best, cal, NAN))
@@ -287,18 +318,22 @@ def horizon_stages(m: IMPrediction, torque_ref: float, flux_ref: float) -> Expan
     """mptc's stage over a horizon (:data:`~.search.Expand`): from a node (i_s, ψ_s, code of
     the switching state in force) each vector's predicted node one period on — the one-step
     law's forward Euler with ω frozen, the same arithmetic — and its stage cost
-    |T* - T| + λ_ψ |ψ* - |ψ|| + λ_sw × commutations."""
+    |T* - T| + λ_ψ |ψ* - |ψ|| + λ_sw × commutations (+ λ_e × their switching energy at the
+    node's current, the loss-aware cost)."""
     ar, ai, br, bi, ts, rs, gain_i, tk, lam, _, _ = stage_constants(m, torque_ref, flux_ref)
     volts = m.volts
     a = complex(ar, ai)
     b = complex(br, bi)
     full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
+    energy = m.energy
 
     def expand(node: tuple[complex, complex, int]) -> list[tuple[float, int, Any]]:
         i, psi, code = node
         i_free = i + ts * (a * i + b * psi)
         psi_free = psi - ts * rs * i
         sw, after = full[code], AFTER[code]
+        if energy is not None:
+            sw = tuple(x + y for x, y in zip(sw, energy.full(code, i)))
         out = []
         for n, u in enumerate(volts):
             i1 = i_free + gain_i * u
@@ -330,11 +365,11 @@ def _argmin_full_period(m: IMPrediction, torque_ref: float, flux_ref: float) -> 
 
 
 def _argmin_with_duty(m: IMPrediction, torque_ref: float, flux_ref: float) -> tuple[int, float]:
-    """MPTC-DB's choice with a switching effort: first strict minimum over V0..V6 of the
-    full-period cost plus the commutations of the duty each vector would be given; the chosen
+    """MPTC-DB's choice with a switching effort or the loss-aware cost: first strict minimum
+    over V0..V6 of the full-period cost plus the commutations of the duty each vector would be
+    given (and their energy, the return to zero at the current of its instant); the chosen
     vector and its raw t_u (s)."""
-    assert m.effort is not None
-    tk, lam, code, applied = m.c.torque_k, m.lam, m.code, m.effort.applied
+    tk, lam, sw, sw_zero, energy = m.c.torque_k, m.lam, m.sw, m.sw_zero, m.energy
     i_free, psi_free, gain_i, ts = m.i_free, m.psi_free, m.gain_i, m.ts
     best, best_n, best_t = INF, 0, NAN
     for n, u in enumerate(m.volts):
@@ -342,7 +377,11 @@ def _argmin_with_duty(m: IMPrediction, torque_ref: float, flux_ref: float) -> tu
         p1 = psi_free + ts * u
         t1 = tk * (p1.real * i1.imag - p1.imag * i1.real)
         t_u = m.deadbeat_time(u, torque_ref) if n else ts
-        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1)) + applied(code, n, t_u / ts)
+        f = t_u / ts
+        g = abs(torque_ref - t1) + lam * abs(flux_ref - abs(p1))
+        g += sw[0] if n == 0 or f <= 0.0 else sw[n] if f >= 1.0 else sw_zero[n]
+        if energy is not None and n and 0.0 < f < 1.0:
+            g += energy.back(n, m.current_at(u, t_u))
         if g < best:
             best, best_n, best_t = g, n, t_u
     return best_n, best_t
@@ -365,6 +404,9 @@ class InductionControllerParams:
     strategy: str = choice("control law; switchable at run time", tuple(IM_STRATEGIES))
     lambda_psi: float = quantity("flux weight λ of the cost", "N·m/Wb", ge=0, default=17.5)
     lambda_sw: float = lambda_sw_field("N·m")
+    lambda_e: float = lambda_e_field("N·m/J")
+    device: str = device_field()
+    device_tj: float = device_tj_field()
     horizon: int = horizon_field("mptc", MAX_HORIZON)
     node_budget: int = budget_field("stage costs", NODE_BUDGET)
     search: str = search_field("mptc's branch and bound over a horizon")
@@ -384,6 +426,7 @@ class InductionControllerParams:
     def __post_init__(self) -> None:
         check_fields(self)
         check_horizon(self, HORIZON_STRATEGIES)
+        check_energy(self)
 
 
 class InductionController(VectorController):
@@ -401,19 +444,28 @@ class InductionController(VectorController):
     horizon_strategies = HORIZON_STRATEGIES
     max_horizon = MAX_HORIZON
 
-    def __init__(self, params: InductionControllerParams, *, ts: float) -> None:
+    def __init__(
+        self, params: InductionControllerParams, *, ts: float, device: Device | None = None
+    ) -> None:
         c = InductionCoefficients.of(params.motor)
         self._coef = c
         effort = SwitchingEffort(params.lambda_sw) if params.lambda_sw > 0 else None
+        energy = switching_energy(params, device)
         self._pred = IMPrediction(
-            c, ts, params.lambda_psi, params.a0_form == "paper_printed", effort
+            c, ts, params.lambda_psi, params.a0_form == "paper_printed", effort, energy
         )
         self._pred.budget = params.node_budget
-        self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
+        if energy is None:  # the loss-aware cost's horizons search in Python
+            self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
         super().__init__(params, ts=ts)
         self.psi_hat = 0j
         self._psi_next = 0j  #: delay compensation: ψ̂ at k+1 under the voltage in force
         self.soft_start = params.soft_start_flux > 0
+
+    def _dc_link(self, u_dc: float) -> None:
+        super()._dc_link(u_dc)
+        if self._pred.energy is not None:
+            self._pred.energy.dc_link(u_dc)
 
     def _observe(self, state: State) -> None:
         psi = self.psi_hat
@@ -442,7 +494,7 @@ class InductionController(VectorController):
         psi = self._psi_next if self._compensate else self.psi_hat
         m.prepare(i, psi, state.omega_m, self._volts)  # keeps i for _applied
         m.horizon = self.horizon
-        if m.effort is not None:
+        if m.effort is not None or m.energy is not None:
             m.switching(self.switches)
         self.est_torque = m.te
         if self.soft_start:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..devices import Device
 from ..fields import check_fields, choice, quantity
 from ..machines import Machine
 from ..machines.magnetics import PMSMSaturation
@@ -49,6 +50,14 @@ from .base import (
     search_field,
 )
 from .candidates import TABLES
+from .energy import (
+    SwitchingEnergy,
+    check_energy,
+    device_field,
+    device_tj_field,
+    lambda_e_field,
+    switching_energy,
+)
 from .kernels import PMSM_STAGE, BranchAndBound, compiled_branch_and_bound
 from .maps import ApparentModel, flux_map_of
 from .search import Expand, SearchResult, branch_and_bound
@@ -106,6 +115,7 @@ class PMSMPrediction:
         "consts",
         "args",
         "effort",
+        "energy",
         "sw",
         "code",
         "horizon",
@@ -126,6 +136,7 @@ class PMSMPrediction:
         threshold: float,
         t_floor: float,
         effort: SwitchingEffort | None = None,
+        energy: SwitchingEnergy | None = None,
     ) -> None:
         self.c = c
         self.ts = ts
@@ -136,6 +147,9 @@ class PMSMPrediction:
         #: the switching effort (None: λ_sw = 0) and each vector's cost for the whole period
         #: from the state in force (:meth:`switching`)
         self.effort = effort
+        #: the loss-aware cost (None: λ_e = 0): each vector's predicted switching energy,
+        #: added to ``sw`` by :meth:`switching` at the period's current
+        self.energy = energy
         self.sw: tuple[float, ...] | None = None
         self.code = 0  #: the switching state in force, S_a·4 + S_b·2 + S_c
         self.horizon = 1  #: N: periods mptc's cost sums over (docs/physics.md#long-horizons)
@@ -156,11 +170,17 @@ class PMSMPrediction:
         self.c = c
         self.consts = (c.psi_f, 1.0 / c.l_d, 1.0 / c.l_q, c.torque_k, c.l_d - c.l_q, self.t_floor)
 
-    def switching(self, switches: tuple[int, int, int]) -> None:
-        """The switching state in force (the one the candidates' commutations count from)."""
-        self.code = SwitchingEffort.code(switches)
-        if self.effort is not None:
-            self.sw = self.effort.full[self.code]
+    def switching(self, switches: tuple[int, int, int], i: complex = 0j) -> None:
+        """The switching state in force (the one the candidates' commutations count from) and,
+        for the loss-aware cost, the current the commutations carry (A, αβ)."""
+        self.code = code = SwitchingEffort.code(switches)
+        effort = None if self.effort is None else self.effort.full[code]
+        if self.energy is None:
+            if effort is not None:
+                self.sw = effort
+            return
+        spent = self.energy.full(code, i)
+        self.sw = spent if effort is None else tuple(a + b for a, b in zip(effort, spent))
 
     def prepare(
         self, i_alpha: float, i_beta: float, theta_e: float, u_dc: float, w_e: float = 0.0
@@ -202,6 +222,15 @@ class PMSMPrediction:
         i_d = (psi * math.cos(delta) - c.psi_f) / c.l_d
         i_q = psi * math.sin(delta) / c.l_q
         return c.torque_k * i_q * (c.psi_f + (c.l_d - c.l_q) * i_d)
+
+    def current(self, psi: complex, ell: int = 0) -> complex:
+        """The current (A, αβ) of stator flux ``psi`` (Wb, αβ) at the start of period ``ell``
+        of a horizon (the rotor at θ_e + ℓ·ω_e·Ts), by the model's L_d, L_q, ψ_f."""
+        c = self.c
+        rot = complex(math.cos(self.theta_e + ell * self.w_e * self.ts),
+                      math.sin(self.theta_e + ell * self.w_e * self.ts))  # fmt: skip
+        dq = psi / rot
+        return complex((dq.real - c.psi_f) / c.l_d, dq.imag / c.l_q) * rot
 
     def predict(self, n: int) -> tuple[float, float]:
         """(T_e(k+1), |ψ_s(k+1)|) if vector ``n`` is applied for Ts (paper 001 eq 1-3).
@@ -322,15 +351,20 @@ def horizon_stages(m: PMSMPrediction, torque_ref: float, flux_ref: float) -> Exp
     on by eq 1-3 in vector form, ψ + V·Ts (R_s neglected), its torque in the rotor frame at
     the rotor's angle of that period's start (frozen over it, as eq 1-3 take it:
     θ_e + ℓ·ω_e·Ts) or, with ``rotor_motion``, of its end (θ_e + (ℓ+1)·ω_e·Ts), and the stage
-    cost sqrt(((T - T*)/T*)² + ((|ψ| - ψ*)/ψ*)²) + λ_sw × commutations."""
+    cost sqrt(((T - T*)/T*)² + ((|ψ| - ψ*)/ψ*)²) + λ_sw × commutations (+ λ_e × their
+    switching energy at the current of the node's ψ_s at the period's start, the loss-aware
+    cost)."""
     (pf, ild, ilq, tk, dl, inv_t, inv_p, _, _), steps, turn = stage_constants(
         m, torque_ref, flux_ref
     )
     full = m.effort.full if m.effort is not None else (NO_EFFORT,) * 8
+    energy = m.energy
 
     def expand(node: tuple[complex, int, int]) -> list[tuple[float, int, Any]]:
         psi, ell, code = node
         rot, sw, after = turn[ell], full[code], AFTER[code]
+        if energy is not None:
+            sw = tuple(x + y for x, y in zip(sw, energy.full(code, m.current(psi, ell))))
         out = []
         for n, step in enumerate(steps):
             p1 = psi + step
@@ -426,6 +460,9 @@ class PMSMControllerParams:
         default=NAN,
     )
     lambda_sw: float = lambda_sw_field("p.u. (eq 5's cost is normalised)")
+    lambda_e: float = lambda_e_field("1/J (eq 5's cost is normalised)")
+    device: str = device_field()
+    device_tj: float = device_tj_field()
     horizon: int = horizon_field("mptc", MAX_HORIZON)
     node_budget: int = budget_field("stage costs", NODE_BUDGET)
     search: str = search_field("mptc's branch and bound over a horizon")
@@ -438,6 +475,7 @@ class PMSMControllerParams:
     def __post_init__(self) -> None:
         check_fields(self)
         check_horizon(self, HORIZON_STRATEGIES)
+        check_energy(self)
         for name, share in (("torque_threshold", 0.05), ("t_floor", 0.01)):
             if math.isnan(getattr(self, name)):
                 object.__setattr__(self, name, share * self.motor.rated_torque)
@@ -453,17 +491,27 @@ class PMSMController(VectorController):
     horizon_strategies = HORIZON_STRATEGIES
     max_horizon = MAX_HORIZON
 
-    def __init__(self, params: PMSMControllerParams, *, ts: float) -> None:
+    def __init__(
+        self, params: PMSMControllerParams, *, ts: float, device: Device | None = None
+    ) -> None:
         effort = SwitchingEffort(params.lambda_sw) if params.lambda_sw > 0 else None
+        energy = switching_energy(params, device)
         self._pred = PMSMPrediction(
-            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor, effort
-        )
+            PMSMCoefficients.of(params.motor), ts, params.torque_threshold, params.t_floor, effort,
+            energy,
+        )  # fmt: skip
         fm = flux_map_of(params.motor, params.saturation)
         self._apparent = None if fm is None else ApparentModel(fm, self._pred.c)
         self._pred.rotor_motion = params.prediction == "rotor_motion"
         self._pred.budget = params.node_budget
-        self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
+        if energy is None:  # the loss-aware cost's horizons search in Python
+            self._pred.compiled = compiled(params.search, "search", compiled_branch_and_bound)
         super().__init__(params, ts=ts)
+
+    def _dc_link(self, u_dc: float) -> None:
+        super()._dc_link(u_dc)
+        if self._pred.energy is not None:
+            self._pred.energy.dc_link(u_dc)
 
     def _predict(self, state: State, u_ab: complex) -> State:
         p = self._pred
@@ -484,9 +532,9 @@ class PMSMController(VectorController):
         m.horizon = self.horizon
         if m.horizon > 1:
             m.theta_e, m.w_e, m.volts = state.theta_e, m.c.p * state.omega_m, self._volts
-            m.switching(self.switches)
-        elif m.effort is not None:
-            m.switching(self.switches)
+            m.switching(self.switches, complex(state.i_alpha, state.i_beta))
+        elif m.effort is not None or m.energy is not None:  # the commutations carry i(k)
+            m.switching(self.switches, complex(state.i_alpha, state.i_beta))
         d: Decision = self.strategy.decide(m, ref.torque_ref, ref.flux_ref)
         return d
 
