@@ -105,7 +105,7 @@ NOT_RUN = {
         "runs it for 0.05 s with a budget and reads report's line"
     ),
     # docs/reproduction.md
-    "predictive-drive reproduce fronts": "635 runs, 5-6 min here; test_fronts.py runs a "
+    "predictive-drive reproduce fronts": "635 runs, 2-6 min here; test_fronts.py runs a "
     "small study through the same code (api.fronts.reproduce_fronts)",
     "predictive-drive reproduce fronts --points im_steady --curves mptc,ifoc --periods-us none "
     '--external "torque_controller=python3 examples/dtc_im/dtc_im/dtc_node.py" --label dtc --knob '

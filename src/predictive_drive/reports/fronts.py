@@ -343,7 +343,7 @@ _PMSM_LAMBDA_E = (0.0, 300.0, 600.0, 1000.0, 1500.0, 2000.0)
 #: (the IGBT's switching losses are most of the IM's; the SiC drives' losses are nearly all
 #: conduction, so their columns lie close together)
 _IM_LOSSES = (8.0, 10.0, 12.0, 13.0, 14.0, 15.0, 20.0, 30.0)
-_IPMSM_LOSSES = (19.4, 19.6, 19.8, 20.0, 20.5, 21.0)
+_IPMSM_LOSSES = (21.0, 21.25, 21.5, 21.75, 22.0, 22.5, 23.0, 24.0)
 _HS_IPMSM_LOSSES = (1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0)
 
 FRONTS: dict[str, OperatingPoint] = {
