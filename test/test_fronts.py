@@ -561,3 +561,27 @@ def test_a_figure_with_nothing_for_its_log_axes_says_so(tmp_path):
         "im_steady: no figure drawn: no run has a positive f_sw and figure to put on log axes "
         "(a run too short to switch?)"
     ]
+
+
+@pytest.mark.core
+def test_a_run_whose_junction_went_above_its_rating_is_off_the_fronts():
+    """A run whose hottest junction over the window went above its device's rated T_j is not a
+    point a drive can run at: its reason names the device position, the temperature, when, and
+    the rating, whatever its misses (ipmsm_steady's MPTC at λ_sw 0.04 ran away to 752 °C)."""
+    from types import SimpleNamespace
+
+    from predictive_drive.api.fronts import overheated
+    from predictive_drive.config import read_device
+
+    sic = read_device("wolfspeed_c3m0065100j", "test")
+    hot = SimpleNamespace(tj_max=752.5, tj_max_device="ta_hi", tj_max_t=0.1234)
+    assert overheated(hot, sic) == (
+        "a junction above its rating: 752.5 °C in ta_hi at 0.1234 s (rated 150 °C)"
+    )
+    assert overheated(SimpleNamespace(tj_max=150.0, tj_max_device="da_lo", tj_max_t=0.1), sic) == ""
+    assert overheated(hot, None) == ""  # no device: nothing booked
+    assert overheated(SimpleNamespace(tj_max=math.nan, tj_max_device="", tj_max_t=0.0), sic) == ""
+    igbt = read_device("semikron_skm150gb124d", "test")
+    assert igbt.diode.t_j_max == 150.0
+    assert "in dc_lo" in overheated(SimpleNamespace(tj_max=151.0, tj_max_device="dc_lo",
+                                                    tj_max_t=0.2), igbt)  # fmt: skip

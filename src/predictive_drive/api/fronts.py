@@ -15,8 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..config import apply_settings, load_scenario_text, resolve_scenario_path
+from ..config import apply_settings, load_scenario_text, read_device, resolve_scenario_path
 from ..core.control.mtpa import mtpa_point
+from ..core.devices import Device
 from ..core.machines import Machine
 from ..core.scenario import Scenario
 from ..core.signals import EXTERNAL_PREFIX, external_name
@@ -74,7 +75,8 @@ _HOW = (
     "the operating point's current (base_current_a), f_sw = turn-on events per device per "
     "second. A point holds the operating point when its mean torque lies within 2 % of T*, its "
     "mean |psi_s| within 2 % of psi* and its current's fundamental within 2 % of the operating "
-    "point's current; the rest are listed (excluded) with their miss, not on the front. The "
+    "point's current and no junction of its inverter goes above its rated temperature over the "
+    "window; the rest are listed (excluded) with their miss, not on the front. The "
     "front of a curve is its points no other of its points beats in both f_sw and the figure; "
     "a column reads the front's point within 3 % of its frequency as measured, else "
     "interpolates log-log between the neighbours that enclose it when they are at most twice "
@@ -564,10 +566,16 @@ _MISSED = {"torque": "mean torque", "flux": "mean |psi_s|", "current": "current'
 
 
 def _point(
-    c: Curve, case: Case, sc: Scenario, row: Any, refs: tuple[float, float, float]
+    c: Curve,
+    case: Case,
+    sc: Scenario,
+    row: Any,
+    refs: tuple[float, float, float],
+    device: Device | None,
 ) -> FrontPoint:
     """A run's point: its figures, its misses of the operating point (T*, ψ*, the base current)
-    and whether it held it."""
+    and whether it held it — not where a junction of its ``device`` went above its rated
+    temperature over the window (a drive cannot run there, whatever its figures)."""
     m = row.metrics
     torque, flux, base = refs
     f = {k: float(getattr(m, k)) for k in SHOWN if k != "i_tdd_cont"}
@@ -575,6 +583,9 @@ def _point(
     if f_tdd != f_tdd:
         f["i_tdd_cont"] = math.nan
     misses, reason = held(m, torque, flux, base)
+    hot = overheated(m, device)
+    if hot:
+        reason = f"{reason}; {hot}" if reason else hot
     ts = float(case.settings.get("ts", sc.ts))
     value = float(case.settings.get(c.knob, math.nan)) if c.knob != "ts" else ts
     return FrontPoint(value, ts, f, misses, not reason, reason, {}, row.wall_s)
@@ -601,17 +612,31 @@ def held(m: Any, torque: float, flux: float, base: float) -> tuple[dict[str, flo
     ) + ")"  # fmt: skip
 
 
+def overheated(m: Any, device: Device | None) -> str:
+    """What a run's metrics ``m`` say of a junction above its rating in ``device`` (its
+    transistor's or diode's ``t_j_max``): '' where none went above it or nothing was booked."""
+    name = str(getattr(m, "tj_max_device", ""))
+    if device is None or not name:
+        return ""
+    rated = (device.switch if name.startswith("t") else device.diode).t_j_max
+    tj = float(m.tj_max)
+    if not tj > rated:
+        return ""
+    return f"a junction above its rating: {tj:.1f} °C in {name} at {m.tj_max_t:.4g} s (rated {rated:g} °C)"
+
+
 def _table(plan: _Plan, rows: Mapping[tuple[str, int], Any]) -> FrontTable:
     op = plan.op
     first = plan.loaded[op.curves[0].name]
     torque = abs(first.speed_pi_params.torque_values[-1])
     flux = first.speed_pi_params.flux_ref
     base, base_text = base_current(first, torque, flux)
+    device = read_device(op.device, "plant.losses.device") if op.device else None
     curves, excluded = [], []
     for c in op.curves:
         sc = plan.loaded[c.name]
         raw = [
-            _point(c, case, sc, rows[(c.name, i)], (torque, flux, base))
+            _point(c, case, sc, rows[(c.name, i)], (torque, flux, base), device)
             for i, case in enumerate(plan.cases[c.name])
         ]
         points = on_fronts(raw)
