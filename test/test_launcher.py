@@ -102,6 +102,46 @@ def test_a_lost_switch_request_is_sent_again(tmp_path):
     assert [p.value.string_value for p in taken[1].parameters] == ["db_mptc"]
 
 
+def test_a_ctrl_c_inside_the_watchers_callback_is_raised_when_its_spin_returns(tmp_path, capfd):
+    """The command line's Ctrl-C lands while the launcher's watcher draws progress from /clock
+    (the more often the slower the terminal draws): it is raised once the spin has returned,
+    in the launcher's own loop. The drawing is not cut, and rclpy's executor does not log the
+    press as a FATAL callback exception with its traceback (was: both, before the stop's line;
+    the launcher's loop then stopped the run as usual)."""
+    import os
+
+    from predictive_drive import interrupts
+    from predictive_drive.ros.launcher import _ClockWatcher
+    from predictive_drive.ros.processes import isolated_domain
+
+    drawn: list[int] = []
+
+    def progress(k: int) -> None:
+        if not drawn:
+            os.kill(os.getpid(), signal.SIGINT)  # the press, inside the callback
+        time.sleep(0.01)  # the handler runs here when the press is not held back
+        drawn.append(k)
+
+    before = signal.signal(signal.SIGINT, interrupts.interrupt)
+    try:
+        with (
+            isolated_domain() as domain,
+            controller_that_loses_the_first_request(domain, 0.05),  # it publishes /clock
+        ):
+            w = _ClockWatcher(domain, load_scenario("im_short"), [], progress, tmp_path)
+            try:
+                with pytest.raises(KeyboardInterrupt):
+                    deadline = time.monotonic() + 30
+                    while time.monotonic() < deadline:
+                        w.spin(0.05)
+            finally:
+                w.close()
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert drawn  # the callback the press came in ran to its end (and any after it in the batch)
+    assert "Exception in" not in capfd.readouterr().err
+
+
 def test_the_param_command_sends_a_lost_request_again(monkeypatch):
     from predictive_drive.ros.params import param
     from predictive_drive.ros.processes import isolated_domain

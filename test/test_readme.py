@@ -82,6 +82,8 @@ NOT_RUN = {
     "pip install foxglove-sdk": "make setup installs it (the [live] extra)",
     "predictive-drive VERB --help": "test_help_is_plain_text_and_lists_every_verb",
     # docs/ros.md
+    "predictive-drive run ... &": "a form (a script's background run, stopped by its PID); "
+    "test_one_ctrl_c_stops_a_run_that_shows_its_progress signals the launcher's own PID",
     "ROS_DOMAIN_ID=N predictive-drive param set torque_controller strategy mptc": "the README's "
     "second shell runs it with db_mptc; test_strategy_switch_through_param_cli",
     "ROS_DOMAIN_ID=N predictive-drive param get torque_controller strategy": (

@@ -18,6 +18,7 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from .. import interrupts
 from ..bag import LOGS_DIR, check_new_bag
 from ..core.control.base import parse_switch
 from ..core.scenario import Scenario
@@ -557,7 +558,11 @@ class _ClockWatcher:
         # /clock only once a timed switch can go out at once: the plant holds step 0 until then
         if self._clock_sub is None and (not self.pending or self.client.services_are_ready()):
             self._follow_clock()
-        self.ex.spin_once(timeout_sec=timeout)
+        # a Ctrl-C is raised when the spin returns, never inside a callback of ours, where
+        # rclpy's executor would log it as a FATAL callback exception with its traceback and
+        # the progress bar's drawing would be cut
+        with interrupts.held():
+            self.ex.spin_once(timeout_sec=timeout)
         if self._inflight is not None:
             what, name, fut, sent = self._inflight
             if fut.done():
