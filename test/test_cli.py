@@ -265,8 +265,13 @@ sys.exit(main(sys.argv[2:]))
         ("yaml", ["run", "--help"], "the Python package PyYAML is not installed"),
         ("rclpy", ["param", "get", "plant", "u_dc"],
          "the ROS 2 package rclpy is not installed: source a ROS 2 Jazzy install"),
+        # a graph's nodes would fail after the launch: refused before, no bag folder left
+        ("rcl_interfaces", ["run", "im_short", "--duration", "0.02", "--out", "b"],
+         "--engine ros needs the ROS 2 package rcl_interfaces, which is not installed: source a "
+         "ROS 2 Jazzy install (. /opt/ros/jazzy/setup.sh) or pip install 'predictive_drive[ros]'; "
+         "or run in-process (--engine inprocess), which needs no ROS"),
     ],
-    ids=["mcap-help", "yaml-verb-help", "rclpy-param"],
+    ids=["mcap-help", "yaml-verb-help", "rclpy-param", "rcl_interfaces-run"],
 )  # fmt: skip
 def test_a_missing_package_is_one_line_naming_it_and_how_to_install_it(
     module, args, says, tmp_path
@@ -278,6 +283,7 @@ def test_a_missing_package_is_one_line_naming_it_and_how_to_install_it(
     assert r.returncode == 2, r.stderr
     (line,) = r.stderr.splitlines()  # one line, no traceback
     assert line.startswith("predictive-drive: error: ") and says in line, line
+    assert list(tmp_path.iterdir()) == []  # nothing started, nothing written
 
 
 @pytest.mark.core

@@ -5,11 +5,13 @@ rest cannot be imported."""
 
 from __future__ import annotations
 
+import importlib.util
 from dataclasses import dataclass
 
 from .errors import MissingDependency
 
-__all__ = ["REQUIREMENTS", "ROS_PACKAGES", "Requirement", "how_to_install", "missing"]
+__all__ = ["GRAPH_MODULES", "REQUIREMENTS", "ROS_PACKAGES", "Requirement", "how_to_install", "missing",
+           "require_ros"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -80,3 +82,23 @@ def missing(module: str, needed_for: str) -> MissingDependency:
     """The error of an optional feature (``needed_for``: the option) whose package is missing."""
     package, how = _package_and_how(module)
     return MissingDependency(f"{needed_for} needs {package}, which is not installed: {how}")
+
+
+#: what the nodes of a graph import: looked for (not imported) before any node process starts
+GRAPH_MODULES = ("rclpy", "rcl_interfaces", "std_msgs", "sensor_msgs", "rosgraph_msgs")
+
+
+def require_ros(needed_for: str) -> None:
+    """MissingDependency naming the first ROS 2 package a graph's nodes would fail to import
+    (``needed_for``: the option that asks for the graph), before anything starts: a node
+    process that cannot import rclpy otherwise fails after the launch, with a traceback."""
+    for module in GRAPH_MODULES:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            raise MissingDependency(
+                f"{missing(module, needed_for)}; or run in-process (--engine inprocess), which "
+                "needs no ROS"
+            )

@@ -21,6 +21,7 @@ from ..core.runner import build_controller, run_inprocess
 from ..core.scenario import Scenario
 from ..core.signals import external_name
 from ..core.timebase import step_index
+from ..dependencies import require_ros
 from ..errors import ConfigError, Interrupted
 from ..live import LiveView, check_port
 from ..readback import bag_status
@@ -267,6 +268,8 @@ def run(
         # checked for every engine, so a bad --switch or --out fails before anything starts
         at_steps = switch_steps(sc, switches)
         check_new_bag(bag)
+        if engine != "inprocess":
+            require_ros(f"--engine {engine}")
         if live:
             check_port(live)
             if announce is not None:
