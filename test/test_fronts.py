@@ -585,3 +585,19 @@ def test_a_run_whose_junction_went_above_its_rating_is_off_the_fronts():
     assert igbt.diode.t_j_max == 150.0
     assert "in dc_lo" in overheated(SimpleNamespace(tj_max=151.0, tj_max_device="dc_lo",
                                                     tj_max_t=0.2), igbt)  # fmt: skip
+
+
+@pytest.mark.core
+def test_a_figure_not_measured_is_said_so_not_nan():
+    """A window without a whole cycle has no current fundamental: the reason says 'not
+    measured' (was '+nan %'), and the run does not hold the point."""
+    from types import SimpleNamespace
+
+    from predictive_drive.api.fronts import held
+
+    m = SimpleNamespace(
+        t_mean_error_cont=0.01, psi_mean_error_cont=0.0, i_fundamental_cont=math.nan
+    )
+    misses, reason = held(m, 3.0, 0.71, 3.9)
+    assert math.isnan(misses["current"]) and "nan" not in reason
+    assert reason.startswith("left the operating point: current's fundamental not measured")

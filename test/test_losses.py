@@ -404,3 +404,17 @@ def test_the_compiled_booking_is_the_reference_bit_for_bit(monkeypatch, how):
         assert a.has_losses and len(a.losses) == len(a.state), name
         np.testing.assert_array_equal(a.losses, b.losses, err_msg=name)
         np.testing.assert_array_equal(a.state, b.state, err_msg=name)
+
+
+def test_a_window_without_an_efficiency_says_why():
+    """Where the powers in and out flow opposite ways over the window (im_short's load reverses:
+    -42 W into the load, 349 W from the DC link) η is '-' and the printout says why."""
+    from types import SimpleNamespace
+
+    from predictive_drive.cli.common import _no_efficiency
+
+    assert _no_efficiency(SimpleNamespace(efficiency=0.9, p_in=100.0, p_out=90.0)) == ""
+    driven = _no_efficiency(SimpleNamespace(efficiency=math.nan, p_in=348.5, p_out=-42.44))
+    assert "the load drives the machine" in driven
+    giving = _no_efficiency(SimpleNamespace(efficiency=math.nan, p_in=-10.0, p_out=20.0))
+    assert "stored energy" in giving

@@ -601,7 +601,7 @@ def held(m: Any, torque: float, flux: float, base: float) -> tuple[dict[str, flo
         "current": m.i_fundamental_cont / base - 1.0,
     }
     lost = [
-        f"{_MISSED[k]} {100 * v:+.2f} %"
+        f"{_MISSED[k]} {100 * v:+.2f} %" if v == v else f"{_MISSED[k]} not measured"
         for k, v in misses.items()
         if not abs(v) <= TOLERANCE[k]  # NaN: not measured, not held
     ]

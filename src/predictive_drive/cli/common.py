@@ -267,6 +267,16 @@ def print_recording(r: _Recording, wall_s: float | None = None) -> None:
         print(f"  note: {r.window_note}")
 
 
+def _no_efficiency(m: Metrics) -> str:
+    """Why a run with losses has no η over its window ('' where it has one): the powers in and
+    out flow opposite ways, the machine's stored energy making up the difference."""
+    if math.isfinite(m.efficiency):
+        return ""
+    if m.p_out < 0.0 <= m.p_in:
+        return " (no eta over the window: the load drives the machine, the DC link feeds it too)"
+    return " (no eta over the window: the machine gives power both ways, from its stored energy)"
+
+
 def print_losses(m: Metrics, d: RecordingDetails) -> None:
     """The losses, the efficiency and the hottest junction of a run with losses on (nothing for
     one without): the metrics window's means."""
@@ -285,7 +295,8 @@ def print_losses(m: Metrics, d: RecordingDetails) -> None:
         ("inverter", w("p_inverter"), "its losses, conduction + switching"),
         ("machine", w("p_machine"),
          f"copper {w('p_copper')}, iron {w('p_iron')}, friction {w('p_friction')}"),
-        ("eta", w("efficiency"), f"{w('p_out')} into the load of {w('p_in')} from the DC link"),
+        ("eta", w("efficiency"), f"{w('p_out')} into the load of {w('p_in')} from the DC link"
+         + _no_efficiency(m)),
     ]  # fmt: skip
     if m.tj_max_device:
         rated = d.rated_tj[0 if m.tj_max_device.startswith("t") else 1]

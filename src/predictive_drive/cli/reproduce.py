@@ -99,7 +99,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument(
         "--curves", metavar="C1,C2", type=_names,
-        help="fronts only: the curves to run, by name (e.g. mptc,foc_im,'mptc N=2'; default "
+        help="fronts only: the curves to run, by name (e.g. mptc,ifoc,'mptc N=2'; default "
         "all: " + "; ".join(f"{n}: {', '.join(c.name for c in op.curves)}"
                             for n, op in FRONTS.items()) + ")",
     )  # fmt: skip

@@ -428,7 +428,9 @@ def fronts_figures(result: Any, skipped: list[str] | None = None) -> dict[str, A
             figs[f"{table.point}_loss"] = _fronts_figure(
                 table, keys, by_loss, LOSS, lambda c, k: c.loss_front(k), one,
                 f"against the inverter's loss ({table.device}; the axis spans the held runs); "
-                "lines: the fronts",
+                "lines: the fronts"
+                if any(p.holds for c in table.curves for p in c.points)
+                else f"against the inverter's loss ({table.device}); no run held the point",
             )  # fmt: skip
     return figs
 
@@ -468,7 +470,7 @@ def _fronts_figure(
     for ax, key in zip(axes.flat, keys):
         shown = METRICS[key]
         if not drawable[key]:
-            ax.text(0.5, 0.5, f"{shown.title}: no run has a positive figure",
+            ax.text(0.5, 0.5, f"{shown.title}: no run has a positive, finite figure",
                     ha="center", va="center", transform=ax.transAxes, fontsize=8)  # fmt: skip
             ax.set(xlabel=shown_x.axis, ylabel=shown.axis)
             continue
