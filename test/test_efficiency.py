@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from predictive_drive import cli
@@ -105,3 +106,12 @@ def test_the_choice_is_checked_before_anything_runs(capsys):
     assert "chooses the efficiency study's runs" in capsys.readouterr().out
     assert cli.main(["reproduce", "efficiency", "--set", "speed_pi.flux_ref=0.3", "--json"]) == 2
     assert "sets it at every grid point" in capsys.readouterr().out
+
+
+def test_a_maps_cells_stop_at_zero_for_a_positive_grid():
+    """Two torques 3 and 15 N·m: the cells' edges 0, 9, 21 (was -3: a negative torque drawn)."""
+    from predictive_drive.reports.figures import _edges
+
+    np.testing.assert_allclose(_edges([3.0, 15.0]), [0.0, 9.0, 21.0])
+    np.testing.assert_allclose(_edges([250.0, 500.0, 750.0]), [125.0, 375.0, 625.0, 875.0])
+    np.testing.assert_allclose(_edges([-2.0, 2.0]), [-4.0, 0.0, 4.0])  # a grid through zero

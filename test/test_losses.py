@@ -301,6 +301,8 @@ def test_the_losses_figure_draws_the_recorded_losses_and_temperatures():
     assert len(temps) == len(DEVICES) + 3
     np.testing.assert_array_equal(temps["T_j ta_hi"].get_ydata(), tr.col("losses", "tj_ta_hi"))
     np.testing.assert_array_equal(temps["winding"].get_ydata(), tr.col("losses", "t_winding"))
+    looks = {(str(ln.get_color()), ln.get_linestyle()) for ln in temps.values()}
+    assert len(looks) == len(temps)  # every temperature told apart (was: 13 lines, 10 colours)
 
 
 def test_the_live_views_layout_plots_every_junction_temperature():

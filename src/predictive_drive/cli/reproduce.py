@@ -470,7 +470,7 @@ def print_efficiency(d: EfficiencyResult) -> None:
             print(f"{m.name}: {metric.title} ({metric.unit}) by torque (N·m) and speed (r/min)")
             print(f"  {'':>6}{heads}")
             for t, row in zip(d.torques, m.grid(key, d.speeds_rpm, d.torques)):
-                cells = "".join(f" {'-' if v is None else f'{scale * v:.4g}':>6}" for v in row)
+                cells = "".join(f" {'-' if v is None else f'{scale * v:.1f}':>6}" for v in row)
                 print(f"  {t:>6g}{cells}")
     excluded = d.excluded()
     if excluded:

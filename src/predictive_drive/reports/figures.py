@@ -220,14 +220,19 @@ def losses_figure(run: Run) -> Any:
         ax.plot(t[m:], mean, linewidth=0.8, label=label)  # the mean of periods k-m..k-1 at k
     ax.set(ylabel="P / W", title=f"{run.label}: losses, means over {m} periods")
     ax.legend(fontsize="small", ncol=2)
-    for name in DEVICES:
+    # a junction's colour is its leg's, its line its part and position: twelve told apart
+    legs = {"a": "tab:blue", "b": "tab:orange", "c": "tab:green"}
+    lines = {("t", "hi"): "-", ("t", "lo"): "--", ("d", "hi"): ":", ("d", "lo"): "-."}
+    for name in DEVICES:  # e.g. "ta_hi": transistor, leg a, upper
         tj = tr.col("losses", f"tj_{name}")
         if np.isfinite(tj).any():
-            tx.plot(t, tj, linewidth=0.6, label=f"T_j {name}")
-    for field, label in (("t_sink", "heatsink"), ("t_winding", "winding"), ("t_rotor", "rotor")):
+            style = {"color": legs[name[1]], "linestyle": lines[(name[0], name[3:])]}
+            tx.plot(t, tj, linewidth=0.8, label=f"T_j {name}", **style)
+    for field, label, colour in (("t_sink", "heatsink", "black"), ("t_winding", "winding",
+                                 "tab:red"), ("t_rotor", "rotor", "tab:purple")):  # fmt: skip
         temp = tr.col("losses", field)
         if np.isfinite(temp).any():
-            tx.plot(t, temp, linewidth=1.2, linestyle="--", label=label)
+            tx.plot(t, temp, linewidth=1.6, color=colour, label=label)
     tx.set(xlabel="t / s", ylabel="T / °C", title="temperatures")
     tx.legend(fontsize="x-small", ncol=4)
     fig.tight_layout()
@@ -567,12 +572,15 @@ def efficiency_figures(result: Any) -> dict[str, Any]:
 
 def _edges(centres: Sequence[float]) -> np.ndarray:
     """Cell edges around ascending grid ``centres``: midway between neighbours, the ends half a
-    step out (a single centre: ±10 %)."""
+    step out, not below zero for a positive grid (a single centre: ±10 %)."""
     c = np.asarray(centres, dtype=float)
     if c.size == 1:
         return np.array([0.9 * c[0], 1.1 * c[0]])
     mid = 0.5 * (c[1:] + c[:-1])
-    return np.concatenate(([c[0] - (mid[0] - c[0])], mid, [c[-1] + (c[-1] - mid[-1])]))
+    first = c[0] - (mid[0] - c[0])
+    if c[0] > 0.0:  # a positive grid's first cell stops at zero, not below
+        first = max(first, 0.0)
+    return np.concatenate(([first], mid, [c[-1] + (c[-1] - mid[-1])]))
 
 
 def save(figs: dict[str, Any], directory: str | Path, prefix: str = "") -> list[Path]:
