@@ -34,6 +34,14 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest in order
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _temporary_files_in_the_sessions_folder(tmp_path_factory):
+    """The processes the tests start make their temporary files under the session's own folder
+    (TMPDIR), which pytest keeps for its last three sessions: a launcher a test kills outright
+    (SIGKILL) cannot remove its scenario file's folder, and /tmp gathered one per such test."""
+    os.environ["TMPDIR"] = str(tmp_path_factory.mktemp("tmp"))
+
+
 @pytest.fixture(scope="session")
 def im_short():
     return load_scenario("im_short")
