@@ -377,3 +377,25 @@ def test_a_horizon_is_checked_against_the_strategy_that_runs(tmp_path):
     errors = {(row.strategy, row.settings["torque_controller.horizon"]): row.error for row in rows}
     assert errors[("mptc", 3)] is None and errors[("db_mptc", 1)] is None
     assert "db_mptc looks one period ahead" in errors[("db_mptc", 3)]
+
+
+def _numbers_of(path: Path, text_columns: set[str]) -> list[dict[str, float]]:
+    """The CSV's rows, every column but ``text_columns`` read as a plain number (refused if a
+    cell is anything else, a numpy repr such as np.float64(0.03) included)."""
+    with open(path) as f:
+        lines = list(csv.DictReader(f))
+    return [{k: float(v) for k, v in ln.items() if k not in text_columns} for ln in lines]
+
+
+@pytest.mark.core
+def test_every_number_column_of_the_csv_holds_plain_numbers(tmp_path):
+    """A deadbeat law's deadbeat share (a numpy scalar once: the CSV read np.float64(0.031))
+    and every other metric are written as numbers a CSV reader parses."""
+    r = sweep("im_short", strategies=["mptc", "db_mptc"], duration=0.05, out=tmp_path / "t.csv",
+              jobs=1)  # fmt: skip
+    rows = _numbers_of(tmp_path / "t.csv", {"strategy", "error"})
+    assert len(rows) == 2 and rows[1]["deadbeat_share"] > 0.0
+    for ln, row in zip(rows, r.rows):
+        assert ln["deadbeat_share"] == row.metrics.deadbeat_share
+    for k, v in r.rows[1].metrics.as_dict().items():  # the cause: metrics are plain numbers
+        assert type(v) in (int, float, str, list, dict), (k, type(v))

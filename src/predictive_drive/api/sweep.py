@@ -570,10 +570,11 @@ def write_table(rows: Sequence[Row], out: str | Path) -> list[Path]:
             with tmp.open("w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(header)
-                for line in body:
+                for line in body:  # a float exactly (repr), a numpy scalar as a plain one
                     w.writerow(
-                        ["" if v is None else repr(v) if isinstance(v, float) else v for v in line]
-                    )
+                        ["" if v is None else repr(float(v)) if isinstance(v, float) else v
+                         for v in line]
+                    )  # fmt: skip
         else:
             _write_parquet(header, body, tmp)
         tmp.replace(f)

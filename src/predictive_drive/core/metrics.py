@@ -569,7 +569,7 @@ def compute_metrics(
             if chose
             else (math.nan,) * 7
         ),
-        deadbeat_share=deadbeat / n if has_t_u else math.nan,
+        deadbeat_share=float(deadbeat / n) if has_t_u else math.nan,
         compute_ns_mean=float(ns.mean()),
         compute_ns_median=float(np.median(ns)),
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
