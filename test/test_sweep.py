@@ -399,3 +399,36 @@ def test_every_number_column_of_the_csv_holds_plain_numbers(tmp_path):
         assert ln["deadbeat_share"] == row.metrics.deadbeat_share
     for k, v in r.rows[1].metrics.as_dict().items():  # the cause: metrics are plain numbers
         assert type(v) in (int, float, str, list, dict), (k, type(v))
+
+
+@pytest.mark.core
+def test_a_sweep_whose_runs_book_losses_shows_and_writes_the_loss_columns(tmp_path, capsys):
+    """With a device file the printed table adds P_inverter, eta and T_j max and the CSV every
+    loss metric, each the run's own metric; without losses the table is as it was."""
+    from predictive_drive.cli.sweep import print_sweep
+    from predictive_drive.core.metrics import LOSS_METRICS
+
+    device = "plant.losses.device=semikron_skm150gb124d"
+    r = sweep("im_short", strategies=["db_mptc"], sets=[device], duration=0.02,
+              out=tmp_path / "t.csv", jobs=1)  # fmt: skip
+    (ln,) = _numbers_of(tmp_path / "t.csv", {"strategy", "error", "tj_max_device",
+                                             "plant.losses.device"})  # fmt: skip
+    m = r.rows[0].metrics
+    assert m.p_inverter > 0.0 and m.tj_max > 25.0 and m.tj_max_device
+    for k in LOSS_METRICS:
+        if k != "tj_max_device":
+            assert ln[k] == getattr(m, k) or (math.isnan(ln[k]) and math.isnan(getattr(m, k))), k
+    with open(tmp_path / "t.csv") as f:
+        assert next(csv.DictReader(f))["tj_max_device"] == m.tj_max_device
+    print_sweep(r)
+    head, units, line = capsys.readouterr().out.splitlines()[:3]
+    assert head.split()[-4:] == ["P_inverter", "eta", "T_j", "max"]
+    assert units.split()[-3:] == ["W", "%", "°C"]
+    assert line.split()[-3] == f"{m.p_inverter:.3g}" and line.split()[-1] == f"{m.tj_max:.1f}"
+
+    plain = sweep("im_short", strategies=["db_mptc"], duration=0.02, out=tmp_path / "p.csv",
+                  jobs=1)  # fmt: skip
+    with open(tmp_path / "p.csv") as f:
+        assert not set(LOSS_METRICS) & set(next(csv.reader(f)))
+    print_sweep(plain)
+    assert "P_inverter" not in capsys.readouterr().out
