@@ -118,12 +118,18 @@ def _mutated(tmp_path: Path, change) -> Path:
     return p
 
 
+def _parent(doc, path: str):
+    """(the object holding the field at dotted ``path``, the field's last key)."""
+    *keys, last = path.split(".")
+    node = doc
+    for k in keys:
+        node = node[int(k)] if k.isdigit() else node[k]
+    return node, last
+
+
 def _set(path: str, value):
     def change(doc):
-        *keys, last = path.split(".")
-        node = doc
-        for k in keys:
-            node = node[int(k)] if k.isdigit() else node[k]
+        node, last = _parent(doc, path)
         if value is _DELETE:
             del node[last]
         else:
@@ -133,6 +139,17 @@ def _set(path: str, value):
 
 
 _DELETE = object()
+
+
+def _rename(path: str, new: str):
+    """A change that renames the field at ``path`` to ``new`` (a misspelling)."""
+
+    def change(doc):
+        node, last = _parent(doc, path)
+        node[new] = node.pop(last)
+
+    return change
+
 
 BAD_DEVICES = [
     ("missing-field", _set("switch.channel", _DELETE), "switch.channel: missing field"),
@@ -159,6 +176,25 @@ BAD_DEVICES = [
      "diode.thermal_foster.tau_vector[1]: -0.1 is not a finite number > 0 and <= 10000 s"),
     ("unequal-foster", _set("diode.thermal_foster.tau_vector", [0.01]),
      "r_th_vector has 2 terms, tau_vector 1"),
+    ("missing-e-off", _set("switch.e_off", _DELETE), "switch.e_off: missing field"),
+    ("missing-e-on", _set("switch.e_on", _DELETE), "switch.e_on: missing field"),
+    ("missing-e-rr", _set("diode.e_rr", _DELETE), "diode.e_rr: missing field"),
+    ("misspelt-e-off", _rename("switch.e_off", "e_of"),
+     "switch.e_of: unknown field; the allowed ones: comment, manufacturer, technology, t_j_max, "
+     "thermal_foster, channel, e_on, e_off, e_on_meas"),
+    ("misspelt-in-energy", _rename("switch.e_on.0.v_supply", "v_suply"),
+     "switch.e_on[0].v_suply: unknown field; the allowed ones: dataset_type"),
+    ("misspelt-in-channel", _rename("diode.channel.0.t_j", "tj"),
+     "diode.channel[0].tj: unknown field; the allowed ones: t_j, v_g, graph_v_i"),
+    ("misspelt-own", _rename("predictive_drive.fit_current", "fit_currents"),
+     "predictive_drive.fit_currents: unknown field; the allowed ones: fit_current, "
+     "voltage_exponent"),
+    ("energy-without-a-curve",
+     _set("switch.e_off", [{"dataset_type": "single", "t_j": 25, "v_supply": 312, "v_g": 15,
+                            "e_x": 0.001, "i_x": 50, "r_g": 5}]),
+     "switch.e_off: no dataset of dataset_type graph_i_e"),
+    ("unknown-dataset-type", _set("switch.e_off.0.dataset_type", "graph_i_x"),
+     "switch.e_off[0].dataset_type: 'graph_i_x' is not one of graph_i_e, single"),
     ("curve-short-of-fit", _set("predictive_drive.fit_current", [2.0, 80.0]),
      "the conduction line is fitted over 2-80 A"),
 ]  # fmt: skip

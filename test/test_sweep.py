@@ -377,3 +377,58 @@ def test_a_horizon_is_checked_against_the_strategy_that_runs(tmp_path):
     errors = {(row.strategy, row.settings["torque_controller.horizon"]): row.error for row in rows}
     assert errors[("mptc", 3)] is None and errors[("db_mptc", 1)] is None
     assert "db_mptc looks one period ahead" in errors[("db_mptc", 3)]
+
+
+def _numbers_of(path: Path, text_columns: set[str]) -> list[dict[str, float]]:
+    """The CSV's rows, every column but ``text_columns`` read as a plain number (refused if a
+    cell is anything else, a numpy repr such as np.float64(0.03) included)."""
+    with open(path) as f:
+        lines = list(csv.DictReader(f))
+    return [{k: float(v) for k, v in ln.items() if k not in text_columns} for ln in lines]
+
+
+@pytest.mark.core
+def test_every_number_column_of_the_csv_holds_plain_numbers(tmp_path):
+    """A deadbeat law's deadbeat share (a numpy scalar once: the CSV read np.float64(0.031))
+    and every other metric are written as numbers a CSV reader parses."""
+    r = sweep("im_short", strategies=["mptc", "db_mptc"], duration=0.05, out=tmp_path / "t.csv",
+              jobs=1)  # fmt: skip
+    rows = _numbers_of(tmp_path / "t.csv", {"strategy", "error"})
+    assert len(rows) == 2 and rows[1]["deadbeat_share"] > 0.0
+    for ln, row in zip(rows, r.rows):
+        assert ln["deadbeat_share"] == row.metrics.deadbeat_share
+    for k, v in r.rows[1].metrics.as_dict().items():  # the cause: metrics are plain numbers
+        assert type(v) in (int, float, str, list, dict), (k, type(v))
+
+
+@pytest.mark.core
+def test_a_sweep_whose_runs_book_losses_shows_and_writes_the_loss_columns(tmp_path, capsys):
+    """With a device file the printed table adds P_inverter, eta and T_j max and the CSV every
+    loss metric, each the run's own metric; without losses the table is as it was."""
+    from predictive_drive.cli.sweep import print_sweep
+    from predictive_drive.core.metrics import LOSS_METRICS
+
+    device = "plant.losses.device=semikron_skm150gb124d"
+    r = sweep("im_short", strategies=["db_mptc"], sets=[device], duration=0.02,
+              out=tmp_path / "t.csv", jobs=1)  # fmt: skip
+    (ln,) = _numbers_of(tmp_path / "t.csv", {"strategy", "error", "tj_max_device",
+                                             "plant.losses.device"})  # fmt: skip
+    m = r.rows[0].metrics
+    assert m.p_inverter > 0.0 and m.tj_max > 25.0 and m.tj_max_device
+    for k in LOSS_METRICS:
+        if k != "tj_max_device":
+            assert ln[k] == getattr(m, k) or (math.isnan(ln[k]) and math.isnan(getattr(m, k))), k
+    with open(tmp_path / "t.csv") as f:
+        assert next(csv.DictReader(f))["tj_max_device"] == m.tj_max_device
+    print_sweep(r)
+    head, units, line = capsys.readouterr().out.splitlines()[:3]
+    assert head.split()[-4:] == ["P_inverter", "eta", "T_j", "max"]
+    assert units.split()[-3:] == ["W", "%", "°C"]
+    assert line.split()[-3] == f"{m.p_inverter:.3g}" and line.split()[-1] == f"{m.tj_max:.1f}"
+
+    plain = sweep("im_short", strategies=["db_mptc"], duration=0.02, out=tmp_path / "p.csv",
+                  jobs=1)  # fmt: skip
+    with open(tmp_path / "p.csv") as f:
+        assert not set(LOSS_METRICS) & set(next(csv.reader(f)))
+    print_sweep(plain)
+    assert "P_inverter" not in capsys.readouterr().out

@@ -34,7 +34,7 @@ from typing import Any
 from .. import interrupts
 from ..config import apply_settings, load_scenario_text, resolve_scenario_path
 from ..core.control import strategy_names
-from ..core.metrics import Metrics
+from ..core.metrics import LOSS_METRICS, Metrics, books_losses
 from ..core.runner import run_inprocess
 from ..core.scenario import Scenario
 from ..core.trace import Trace
@@ -501,11 +501,13 @@ DRAW_RANKED = ("t_rmse",)
 
 
 def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
-    """Header and rows: strategy, one column per swept key (the value as given), every metric,
+    """Header and rows: strategy, one column per swept key (the value as given), every metric
+    (:data:`COLUMNS`, and :data:`~..core.metrics.LOSS_METRICS` where a run booked losses),
     utilization V0..V6, error, wall_s."""
     keys = list(dict.fromkeys(k for r in rows for k in r.settings))
     drawn = any(r.draw is not None for r in rows)
-    header = ["strategy", *keys, *COLUMNS, *(f"util_v{i}" for i in range(7)), "error", "wall_s"]
+    metrics = [*COLUMNS, *(LOSS_METRICS if any(books_losses(r.metrics) for r in rows) else ())]
+    header = ["strategy", *keys, *metrics, *(f"util_v{i}" for i in range(7)), "error", "wall_s"]
     header[1:1] = ["draw"] if drawn else []
     out = []
     for r in rows:
@@ -516,7 +518,7 @@ def table(rows: Sequence[Row]) -> tuple[list[str], list[list[Any]]]:
                 r.strategy,
                 *([r.draw["index"] if r.draw else None] if drawn else []),
                 *(r.settings.get(k) for k in keys),
-                *(m.get(c, math.nan) for c in COLUMNS),
+                *(m.get(c, "" if c == "tj_max_device" else math.nan) for c in metrics),
                 *util[:7],
                 r.error or "",
                 r.wall_s,
@@ -570,10 +572,11 @@ def write_table(rows: Sequence[Row], out: str | Path) -> list[Path]:
             with tmp.open("w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(header)
-                for line in body:
+                for line in body:  # a float exactly (repr), a numpy scalar as a plain one
                     w.writerow(
-                        ["" if v is None else repr(v) if isinstance(v, float) else v for v in line]
-                    )
+                        ["" if v is None else repr(float(v)) if isinstance(v, float) else v
+                         for v in line]
+                    )  # fmt: skip
         else:
             _write_parquet(header, body, tmp)
         tmp.replace(f)

@@ -7,15 +7,17 @@ from collections.abc import Sequence
 from typing import Any
 
 from ..api.sweep import DRAW_COLUMNS, DRAW_RANKED, SweepResult, sweep
-from ..core.metrics import METRICS
+from ..core.metrics import METRICS, books_losses
 from .common import refuse, runs_progress, say_json, scenario_argument, seconds
 
 HELP = (
     "a grid of in-process runs (strategies x settings) on the local cores or a Dask cluster, "
     "as one table"
 )
-#: the table's metric columns (how each is shown: core.metrics.METRICS)
+#: the table's metric columns (how each is shown: core.metrics.METRICS), and those it adds where
+#: a run booked losses (the CSV and Parquet tables have every loss metric)
 COLUMNS = ("t_rmse", "psi_rmse", "f_ave_hz", "f_sw_hz", "thd")
+LOSS_COLUMNS = ("p_inverter", "efficiency", "tj_max")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -114,15 +116,19 @@ def print_sweep(r: SweepResult) -> None:
         for k in keys
     ]
     head = " ".join(f"{k.rsplit('.', 1)[-1]:>{w}}" for k, w in zip(keys, widths))
-    shown = [METRICS[c] for c in COLUMNS]
-    print(f"{'strategy':<14} {head} " + " ".join(f"{m.title:>9}" for m in shown))
-    print(f"{'':<14} {' ' * len(head)} " + " ".join(f"{m.unit:>9}" for m in shown))
+    columns = COLUMNS + (LOSS_COLUMNS if any(books_losses(row.metrics) for row in r.rows) else ())
+    shown = [METRICS[c] for c in columns]
+    cw = [max(9, len(m.title)) for m in shown]
+    print(f"{'strategy':<14} {head} " + " ".join(f"{m.title:>{w}}" for m, w in zip(shown, cw)))
+    print(f"{'':<14} {' ' * len(head)} " + " ".join(f"{m.unit:>{w}}" for m, w in zip(shown, cw)))
     for row in r.rows:
         values = " ".join(f"{str(row.settings.get(k)):>{w}}" for k, w in zip(keys, widths))
         if row.error or row.metrics is None:
             print(f"{row.strategy:<14} {values} error: {row.error}")
             continue
-        cells = " ".join(f"{m.format(getattr(row.metrics, c)):>9}" for m, c in zip(shown, COLUMNS))
+        cells = " ".join(
+            f"{m.format(getattr(row.metrics, c)):>{w}}" for m, c, w in zip(shown, columns, cw)
+        )
         print(f"{row.strategy:<14} {values} {cells}")
     _totals(r)
 

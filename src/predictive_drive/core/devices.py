@@ -61,6 +61,24 @@ TAU_MAX = 1.0e4  #: s
 COMMUTATION_MAX_S = 1.0e-5
 #: points each switching-energy curve is resampled to (a uniform current grid)
 GRID_POINTS = 128
+#: the switching energies each part must give (a curve against the current, ``graph_i_e``)
+ENERGIES = {"switch": ("e_on", "e_off"), "diode": ("e_rr",)}
+#: the keys the database's format defines in each object this loader reads (any other is a
+#: misspelling and refused, naming the allowed ones); the loader reads only some of them
+SWITCH_KEYS = ("comment", "manufacturer", "technology", "t_j_max", "thermal_foster", "channel",
+               "e_on", "e_off", "e_on_meas", "e_off_meas", "linearized_switch", "r_channel_th",
+               "charge_curve", "soa")  # fmt: skip
+DIODE_KEYS = ("comment", "manufacturer", "technology", "t_j_max", "thermal_foster", "channel",
+              "e_rr", "linearized_diode", "soa")  # fmt: skip
+ENERGY_KEYS = ("dataset_type", "comment", "measurement_date", "measurement_testbench",
+               "commutation_device", "t_j", "v_supply", "v_g", "v_g_off", "load_inductance",
+               "commutation_inductance", "e_x", "r_g", "i_x", "graph_i_e", "graph_r_e",
+               "graph_t_e")  # fmt: skip
+ENERGY_DATASET_TYPES = ("graph_i_e", "single", "graph_r_e", "graph_t_e")
+CHANNEL_KEYS = ("t_j", "v_g", "graph_v_i")
+FOSTER_KEYS = ("r_th_vector", "r_th_total", "c_th_vector", "c_th_total", "tau_vector",
+               "tau_total", "graph_t_rthjc")  # fmt: skip
+OWN_KEYS = ("fit_current", "voltage_exponent")
 
 
 @dataclass(frozen=True)
@@ -223,23 +241,23 @@ def parse_device(text: str, source: str) -> Device:
     r = _Reader(doc, source)
     kind = r.choice("type", DEVICE_TYPES)
     i_cont = r.number("i_cont", gt=0.0, unit="A")
-    own = r.section(OWN_KEY, optional=True)
+    own = r.section(OWN_KEY, optional=True).only(OWN_KEYS)
     fit = own.numbers("fit_current", unit="A", gt=0.0, count=2, optional=True)
     fit_range = (fit[0], fit[1]) if fit else (0.1 * i_cont, i_cont)
     if fit_range[1] <= fit_range[0]:
         raise ConfigError(
             f"{source}: {OWN_KEY}.fit_current: {list(fit_range)} must rise (A, [from, to])"
         )
-    exponents = own.section("voltage_exponent", optional=True)
+    exponents = own.section("voltage_exponent", optional=True).only(tuple(ENERGIES))
     mosfet = "MOSFET" in kind
     parts = {}
-    for name, energies in (("switch", ("e_on", "e_off")), ("diode", ("e_rr",))):
-        s = r.section(name)
+    for name, energies in ENERGIES.items():
+        s = r.section(name).only(SWITCH_KEYS if name == "switch" else DIODE_KEYS)
         parts[name] = Part(
             t_j_max=s.number("t_j_max", ge=T_J_RANGE[0], le=T_J_RANGE[1], unit="°C"),
             **s.foster(optional=name == "diode"),
             lines=s.lines(fit_range, origin=mosfet and name == "switch", pick=name),
-            energies={e: t for e in energies if (t := s.energies(e, i_cont)) is not None},
+            energies={e: s.energies(e, i_cont) for e in energies},
             voltage_exponent=exponents.number(name, ge=0.0, le=3.0, optional=True, default=1.0),
         )
     return Device(
@@ -278,6 +296,14 @@ class _Reader:
 
     def fail(self, key: str, why: str) -> ConfigError:
         return ConfigError(f"{self.source}: {self.where(key)}: {why}")
+
+    def only(self, allowed: tuple[str, ...]) -> _Reader:
+        """This reader, after refusing any key of its object not in ``allowed`` (a misspelt
+        field would otherwise read as absent)."""
+        for key in self.doc:
+            if key not in allowed:
+                raise self.fail(key, f"unknown field; the allowed ones: {', '.join(allowed)}")
+        return self
 
     def get(self, key: str, optional: bool) -> Any:
         value = self.doc.get(key)
@@ -357,7 +383,7 @@ class _Reader:
         value = self.get("thermal_foster", optional)
         if value is None or (optional and isinstance(value, dict) and not value.get("r_th_vector")):
             return {"r_th": (), "tau": ()}
-        f = self.section("thermal_foster")
+        f = self.section("thermal_foster").only(FOSTER_KEYS)
         r = f.numbers("r_th_vector", unit="K/W", gt=0.0, le=R_TH_MAX)
         tau = f.numbers("tau_vector", unit="s", gt=0.0, le=TAU_MAX)
         if len(r) != len(tau):
@@ -371,6 +397,7 @@ class _Reader:
         the highest gate voltage (the transistor on) or, for a diode, the lowest (its gate off)."""
         chosen: dict[float, tuple[float, _Reader]] = {}
         for c in self.items("channel"):
+            c.only(CHANNEL_KEYS)
             t_j = c.number("t_j", ge=T_J_RANGE[0], le=T_J_RANGE[1], unit="°C")
             v_g = c.number("v_g", optional=True, default=0.0, unit="V")
             rank = v_g if pick == "switch" else -v_g
@@ -414,13 +441,16 @@ class _Reader:
                 )
         return x, y
 
-    def energies(self, name: str, i_cont: float) -> EnergyTable | None:
+    def energies(self, name: str, i_cont: float) -> EnergyTable:
         """The curves of switching energy ``name`` (datasets ``graph_i_e``) at the highest test
-        voltage given, as an :class:`EnergyTable`; None where the datasheet gives none."""
+        voltage given, as an :class:`EnergyTable`; refused where the file gives none (a part
+        without the energy would book 0 J for every such commutation)."""
         sets = []
-        for d in self.items(name, optional=True):
+        for d in self.items(name):
+            d.only(ENERGY_KEYS)
             if d.doc.get("dataset_type", "graph_i_e") != "graph_i_e":
-                continue  # energy against gate resistance: not used
+                d.choice("dataset_type", ENERGY_DATASET_TYPES)
+                continue  # a single point, energy against gate resistance or time: not used
             v_ref = d.number("v_supply", gt=0.0, unit="V")
             t_j = d.number("t_j", ge=T_J_RANGE[0], le=T_J_RANGE[1], unit="°C")
             i, e = d.curve("graph_i_e", x_max=math.inf, x_unit="A", y_unit="J")
@@ -435,7 +465,11 @@ class _Reader:
                     )
             sets.append((v_ref, t_j, i, e))
         if not sets:
-            return None
+            raise self.fail(
+                name,
+                "no dataset of dataset_type graph_i_e (the energy against the current, "
+                "[[A, ...], [J, ...]]): the only kind the losses read",
+            )
         v_ref = max(s[0] for s in sets)
         at_v = sorted((s for s in sets if s[0] == v_ref), key=lambda s: s[1])
         temps = [s[1] for s in at_v]

@@ -31,6 +31,8 @@ __all__ = [
     "continuous_mean_error",
     "continuous_ripple",
     "continuous_rmse",
+    "LOSS_METRICS",
+    "books_losses",
     "loss_figures",
     "fundamental_angle",
     "whole_cycles",
@@ -569,7 +571,7 @@ def compute_metrics(
             if chose
             else (math.nan,) * 7
         ),
-        deadbeat_share=deadbeat / n if has_t_u else math.nan,
+        deadbeat_share=float(deadbeat / n) if has_t_u else math.nan,
         compute_ns_mean=float(ns.mean()),
         compute_ns_median=float(np.median(ns)),
         speed_rmse=float(np.sqrt(np.mean((speed - speed_ref) ** 2))),
@@ -597,6 +599,20 @@ def compute_metrics(
         i_fundamental_cont=cont.fundamental,
         i_distortion_cont=cont.distortion,
     )
+
+
+#: the figures of a run that books losses (:func:`loss_figures`), in the order tables show them;
+#: NaN ('' for the device) for a run without losses
+LOSS_METRICS = (
+    "p_inverter", "p_cond_t", "p_cond_d", "p_sw_t", "p_sw_d", "p_machine", "p_copper", "p_iron",
+    "p_friction", "p_in", "p_out", "efficiency", "tj_max", "tj_max_t", "tj_max_device",
+    "t_winding_max",
+)  # fmt: skip
+
+
+def books_losses(m: Metrics | None) -> bool:
+    """Whether the run of metrics ``m`` booked losses (its inverter's are a number)."""
+    return m is not None and math.isfinite(m.p_inverter)
 
 
 def loss_figures(trace: Trace, k0: int, k1: int) -> dict[str, Any]:
