@@ -212,3 +212,24 @@ def test_sweep_draw_prints_each_strategy_over_the_drives(capsys):
     lines = [line for line in out.splitlines() if line.startswith(("mptc ", "simplified3 "))]
     assert len(lines) == 2 and all("[" in line for line in lines)
     assert cli.main([*args[:-2], "--spread", "plant.motor.l_q=normal:-1", "--json"]) == 2
+
+
+@pytest.mark.core
+@pytest.mark.parametrize(
+    "args,says",
+    [
+        (["--spread", "plant.motor.l_q=normal:0.1"],
+         "--spread: give --draw N too (the number of drives to draw, at least 1)"),
+        (["--draw", "0"], "--draw 0: the number of drawn drives must be at least 1"),
+        (["--draw", "3"], "--draw: give the spreads to draw from"),
+    ],
+    ids=["spread-without-draw", "draw-0", "draw-without-spread"],
+)  # fmt: skip
+def test_draw_and_spread_go_together_and_say_so(args, says, capsys):
+    """A spread without --draw names --draw (was: '--draw 0: ... at least 1', a value the user
+    never gave); --draw 0 is refused (was: a plain sweep, silently)."""
+    from predictive_drive import cli
+
+    code = cli.main(["sweep", "im_short", "--duration", "0.01", "--jobs", "1", *args])
+    err = capsys.readouterr().err
+    assert code == 2 and says in err, err

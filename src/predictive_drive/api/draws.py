@@ -145,7 +145,7 @@ def _field(sc: Scenario, key: str) -> tuple[Any, Any]:
 def drawn(
     scenario: str | Path,
     spreads: Sequence[Spread],
-    n: int,
+    n: int | None,
     seed: int,
     settings: dict[str, Any] | None = None,
 ) -> list[Draw]:
@@ -155,6 +155,8 @@ def drawn(
     the key, the draw and the range before anything runs."""
     from ..config import resolve_scenario_path
 
+    if n is None:
+        raise ConfigError("--spread: give --draw N too (the number of drives to draw, at least 1)")
     if n < 1:
         raise ConfigError(f"--draw {n}: the number of drawn drives must be at least 1")
     if not spreads:
@@ -309,7 +311,7 @@ def _index(row: Row) -> int:
 def sweep_drawn(
     scenario: str | Path,
     *,
-    draw: int,
+    draw: int | None,
     spreads: Sequence[str],
     seed: int = 0,
     sets: Sequence[str] = (),

@@ -54,7 +54,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--draw",
         type=int,
-        default=0,
         metavar="N",
         help="run every case on N drives drawn from the --spread distributions (the same N for "
         "every strategy); prints each strategy's mean with its 95%% interval and its chance of "
@@ -86,7 +85,7 @@ def main(a: argparse.Namespace) -> int:
         progress=update,
     )
     try:
-        if a.draw or a.spread:
+        if a.draw is not None or a.spread:
             from ..api.draws import sweep_drawn
 
             r = sweep_drawn(
