@@ -156,6 +156,11 @@ _JSON_CASES = [
     (("bench", "--steps", "0"), "ConfigError", "--steps 0: must be at least 2000"),
     (("layout", "--out", "/proc/drive.foxglove.json"), "ConfigError", "cannot write it"),
     (("param", "get", "plant", "u_dc", "1"), "ConfigError", "param get takes NODE NAME only"),
+    (
+        ("param", "get", "plant", "u_dc", "--timeout", "0"),
+        "ConfigError",
+        "--timeout 0: a number of seconds above 0",
+    ),
     (("run", "im_short", "--no-such-option"), "UsageError", "unrecognized arguments"),
 ]
 

@@ -415,7 +415,7 @@ def test_the_plant_waits_at_a_scheduled_switch_until_the_controller_takes_it(
         p, params = _waiting_at_step_500(composed_run, domain, tmp_path / "late")
         assert p.poll() is None, p.communicate()[0]  # waiting at step 500
         setter = subprocess.run(
-            [*CLI, "param", "set", "torque_controller", "strategy", "db_mptc"],
+            [*CLI, "param", "set", "torque_controller", "strategy", "db_mptc", "--timeout", "30"],
             env={**os.environ, "ROS_DOMAIN_ID": str(domain)},
             capture_output=True,
             text=True,
@@ -929,7 +929,8 @@ def test_param_set_horizon_from_another_shell_lands_at_the_scheduled_step(compos
                              env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
         # rclpy's own range check (the descriptor's IntegerRange) answers first
         assert bad.returncode != 0 and "horizon out of range. Min: 1, Max: 6" in bad.stderr
-        setter = subprocess.run([*CLI, "param", "set", "torque_controller", "horizon", "3"],
+        setter = subprocess.run([*CLI, "param", "set", "torque_controller", "horizon", "3",
+                                 "--timeout", "30"],
                                 env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
         assert setter.returncode == 0, setter.stderr
         out, _ = p.communicate(timeout=60)

@@ -187,7 +187,8 @@ def test_a_client_watches_the_graph_and_switches_its_strategy(tmp_path):
         assert any(par["parameters"] == updated for par in got.parameters)
         # a switch from outside (another shell's `param set`) reaches the app too
         outside = subprocess.run(
-            [*CLI, "param", "set", "torque_controller", "strategy", "mptc_db"],
+            [*CLI, "param", "set", "torque_controller", "strategy", "mptc_db",
+             "--timeout", "30"],
             env={**os.environ, "ROS_DOMAIN_ID": domain},
             capture_output=True, text=True, timeout=60,
         )  # fmt: skip

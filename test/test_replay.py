@@ -170,7 +170,7 @@ def test_replay_reaches_an_independent_subscriber_in_order_byte_for_byte(recordi
         try:
             wait_until(listener.matched, "the player's publishers never matched", timeout=60)
             go = subprocess.run(
-                [*CLI, "param", "set", "player", "paused", "false"],
+                [*CLI, "param", "set", "player", "paused", "false", "--timeout", "30"],
                 env=env,
                 capture_output=True,
                 text=True,
@@ -320,7 +320,8 @@ def _play(domain: int, bag, *args: str, listener, ready, until=None, then=_inter
                 every=0.02,
             )
             if condition is ready:
-                go = subprocess.run([*CLI, "param", "set", "player", "paused", "false"],
+                go = subprocess.run([*CLI, "param", "set", "player", "paused", "false",
+                 "--timeout", "30"],
                                     env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
                 assert go.returncode == 0, go.stderr
             elif then is not None:
@@ -373,7 +374,8 @@ def test_start_paused_sends_nothing_until_unpaused_and_topics_keep_the_rest_out(
             )
             time.sleep(0.5)  # paused: nothing may come in this half second
             assert all(v == [] for v in listener.got.values())
-            go = subprocess.run([*CLI, "param", "set", "player", "paused", "false"], env=env,
+            go = subprocess.run([*CLI, "param", "set", "player", "paused", "false",
+                 "--timeout", "30"], env=env,
                                 capture_output=True, text=True, timeout=60)  # fmt: skip
             assert go.returncode == 0, go.stderr
             out, err = p.communicate(timeout=60)
@@ -467,7 +469,8 @@ def test_a_live_rate_change_and_the_clock_from_the_replayed_time(tmp_path):
         def fast(ls) -> bool:  # 10 ms of recorded time in at rate 0.05: speed it up
             if len(ls.got["/drive/command"]) < 200:
                 return False
-            r = subprocess.run([*CLI, "param", "set", "player", "rate", "20.0"], env=env,
+            r = subprocess.run([*CLI, "param", "set", "player", "rate", "20.0",
+                                    "--timeout", "30"], env=env,
                                capture_output=True, text=True, timeout=60)  # fmt: skip
             assert r.returncode == 0, r.stderr
             return True

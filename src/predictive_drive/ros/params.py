@@ -60,7 +60,11 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
             if fut.done():
                 break
             if time.monotonic() >= deadline:
-                raise GraphError(f"node {node} did not answer within {timeout} s")
+                raise GraphError(
+                    f"node {node} did not answer within {timeout:g} s (its parameter services "
+                    "are there: a node busy on a loaded machine may answer later; --timeout S "
+                    "waits longer)"
+                )
         res = fut.result()
         if value is None:
             if not res.values or res.values[0].type == 0:  # PARAMETER_NOT_SET: undeclared
