@@ -466,18 +466,25 @@ def test_a_live_rate_change_and_the_clock_from_the_replayed_time(tmp_path):
         listener = Listener(domain)
         env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
 
-        def fast(ls) -> bool:  # 10 ms of recorded time in at rate 0.05: speed it up
+        # rate 0.01: the 0.4 s would take 40 s, so the rate change lands while it plays however
+        # long the param command takes to start on a loaded machine
+        def fast(ls) -> bool:  # 10 ms of recorded time in at rate 0.01: speed it up
             if len(ls.got["/drive/command"]) < 200:
                 return False
             r = subprocess.run([*CLI, "param", "set", "player", "rate", "20.0",
                                     "--timeout", "30"], env=env,
                                capture_output=True, text=True, timeout=60)  # fmt: skip
-            assert r.returncode == 0, r.stderr
+            # the set ends the replay within milliseconds (rate 20 plays the rest at once), and
+            # now and then the player is gone before its answer has left: what it did is held
+            # below (the late messages' pace, the rate it fell behind at)
+            assert r.returncode == 0 or "left the graph before its answer came" in r.stderr, (
+                r.stderr
+            )
             return True
 
         try:
             code, report, err = _play(
-                domain, bag, "--rate", "0.05", "--clock", "50", "--topics", "/drive/command",
+                domain, bag, "--rate", "0.01", "--clock", "50", "--topics", "/drive/command",
                 listener=listener, ready=lambda ls: ls.subs[1].get_publisher_count() > 0,
                 until=fast, then=None,
             )  # fmt: skip
@@ -486,13 +493,14 @@ def test_a_live_rate_change_and_the_clock_from_the_replayed_time(tmp_path):
     assert code == 0, err
     assert len(listener.got["/drive/command"]) == 8000  # every one, whatever the pace
     # the second half (0.2 s of recorded time) came far faster than rate 0.05 would bring it
-    # (4 s): the rate was changed while it played; at 20 the player could not keep up. How much
-    # faster depends on the machine's load (0.49 s for these 4,000 messages with two test
-    # suites on the 2 cores, 10x failed there): twice is the rate change, whatever the load
+    # (4 s; the start's 0.01, 20 s): the rate was changed while it played; at 20 the player
+    # could not keep up. How much faster depends on the machine's load (0.49 s for these 4,000
+    # messages with two test suites on the 2 cores, 10x failed there): twice is the rate
+    # change, whatever the load
     late = [t for t, _ in listener.got["/drive/command"][4000:]]
     assert 0.2 / (late[-1] - late[0]) > 2 * 0.05, late[-1] - late[0]  # at least 2x faster
     assert report["max_lag_s"] > 0.1
-    assert "replay falls behind" in err and "drops nothing" in err
+    assert "replay falls behind" in err and "at rate 20" in err and "drops nothing" in err
     clock = [_stamp(d) for _, d in listener.got["/clock"]]
     recorded_clock = {t for _, t, _ in iter_messages(bag, topics=["/clock"])}
     assert clock and not set(clock) <= recorded_clock  # not the recorded clock

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from typing import Any
 
 from rclpy.parameter import Parameter
@@ -50,22 +51,31 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
         if not client.wait_for_services(timeout_sec=timeout):
             raise GraphError(f"node {node} offers no parameter services; {_where_runs_are(domain)}")
         deadline = time.monotonic() + timeout
-        while True:
-            if value is None:
-                fut = client.get_parameters([name])
-            else:
-                fut = client.set_parameters([Parameter(name, value=_value(value))])
-            left = deadline - time.monotonic()
-            ex.spin_until_future_complete(fut, timeout_sec=max(0.0, min(RESEND_AFTER, left)))
-            if fut.done():
-                break
-            if time.monotonic() >= deadline:
-                raise GraphError(
-                    f"node {node} did not answer within {timeout:g} s (its parameter services "
-                    "are there: a node busy on a loaded machine may answer later; --timeout S "
-                    "waits longer)"
-                )
-        res = fut.result()
+
+        def answer(ask: Callable[[], Any]) -> Any:
+            """``ask()``'s answer, asked again every RESEND_AFTER s until the deadline."""
+            while True:
+                fut = ask()
+                left = deadline - time.monotonic()
+                ex.spin_until_future_complete(fut, timeout_sec=max(0.0, min(RESEND_AFTER, left)))
+                if fut.done():
+                    return fut.result()
+                if not _in_graph(me, node):
+                    raise GraphError(
+                        f"node {node} left the graph before its answer came (a set may have "
+                        "been applied: the node ended right after it)"
+                    )
+                if time.monotonic() >= deadline:
+                    raise GraphError(
+                        f"node {node} did not answer within {timeout:g} s (its parameter "
+                        "services are there: a node busy on a loaded machine may answer later; "
+                        "--timeout S waits longer)"
+                    )
+
+        if value is None:
+            res = answer(lambda: client.get_parameters([name]))
+        else:
+            res = answer(lambda: client.set_parameters([Parameter(name, value=_value(value))]))
         if value is None:
             if not res.values or res.values[0].type == 0:  # PARAMETER_NOT_SET: undeclared
                 raise GraphError(f"node {node} has no parameter {name!r}; {_listing(client, ex)}")
@@ -81,6 +91,13 @@ def param(*, node: str, name: str, value: str | None = None, timeout: float = 10
                 )
             raise GraphError(f"{node}: setting {name} to {value!r} was rejected: {r.reason}")
         return _value(value)
+
+
+def _in_graph(me: Any, node: str) -> bool:
+    """Whether ``node`` (its full name) is still among the graph's nodes as ``me`` sees them."""
+    return any(
+        f"{ns.rstrip('/')}/{name}" == node for name, ns in me.get_node_names_and_namespaces()
+    )
 
 
 def _where_runs_are(domain: int) -> str:
