@@ -11,6 +11,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -767,19 +768,38 @@ def test_a_killed_node_leaves_no_shared_memory_behind(cli_run, tmp_path):
 
     p, nodes = started_recording(cli_run, tmp_path / "shm")
     # the killed node's own segments; those a process outside this run also uses (another
-    # test's, which may end later) are not the launcher's to remove
+    # test's, which may end later) are not the launcher's to remove. The ports are numbered
+    # machine-wide (7000, 7001, ... as participants come), so another test's graph may open one
+    # of this run's while it ends: what outside processes use is looked at until the run is over
     run_pids = {str(p.pid), *(str(c) for c in descendants(p.pid))}
-    outside = set().union(
-        *(_shm_files(d.name) for d in Path("/proc").iterdir()
-          if d.name.isdigit() and d.name not in run_pids)
-    )  # fmt: skip
+
+    def outside_now() -> set[str]:
+        return set().union(
+            *(_shm_files(d.name) for d in Path("/proc").iterdir()
+              if d.name.isdigit() and d.name not in run_pids)
+        )  # fmt: skip
+
+    outside = outside_now()
     mine = {f for f in _shm_files(str(nodes["plant"])) if f.startswith("fastrtps_")} - outside
     assert mine
-    os.kill(nodes["plant"], signal.SIGKILL)
-    p.communicate(timeout=120)
+    done = threading.Event()
+
+    def watch() -> None:
+        while not done.is_set():
+            outside.update(outside_now())
+            done.wait(0.05)
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    try:
+        os.kill(nodes["plant"], signal.SIGKILL)
+        p.communicate(timeout=120)
+    finally:
+        done.set()
+        watcher.join(timeout=10)
     assert p.returncode == 2
     in_use = set().union(*(_shm_files(d.name) for d in Path("/proc").iterdir() if d.name.isdigit()))
-    left = (mine & _fastdds_files()) - in_use
+    left = (mine & _fastdds_files()) - in_use - outside
     assert not left, sorted(left)
 
 

@@ -188,9 +188,9 @@ def run_graph(
         finally:
             if not children.abandoned:  # a repeated Ctrl-C leaves them to close on their own
                 stop_processes(procs)  # none left after a clean end or a failure
-            children.shm.clean()
-            if watcher is not None:
+            if watcher is not None:  # first: its participant maps the nodes' ports too
                 watcher.close()
+            children.shm.clean()
 
 
 def _say_how_to_start(name: str, domain: int, args: list[str], limit: float) -> None:
