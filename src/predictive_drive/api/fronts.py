@@ -618,7 +618,7 @@ def overheated(m: Any, device: Device | None) -> str:
     name = str(getattr(m, "tj_max_device", ""))
     if device is None or not name:
         return ""
-    rated = (device.switch if name.startswith("t") else device.diode).t_j_max
+    rated = device.rated_tj(name)
     tj = float(m.tj_max)
     if not tj > rated:
         return ""

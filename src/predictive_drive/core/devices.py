@@ -210,6 +210,11 @@ class Device:
         """The diode has no network of its own: it is the transistor's body diode, one die."""
         return not self.diode.r_th
 
+    def rated_tj(self, position: str) -> float:
+        """The rated junction temperature (°C) of a device position's part: ``t..`` the
+        transistor's, ``d..`` the diode's (e.g. ``ta_hi``, ``dc_lo``)."""
+        return (self.switch if position.startswith("t") else self.diode).t_j_max
+
     def check_voltage(self, u_dc: float, where: str) -> None:
         """ConfigError if the device's voltage class is below the DC link's ``u_dc`` V."""
         if self.v_abs_max < u_dc:

@@ -581,7 +581,7 @@ def overheats(trace: Trace, device: Device | None) -> list[Overheat]:
     out = []
     for name in DEVICES:
         tj = trace.col("losses", f"tj_{name}")
-        rated = (device.switch if name.startswith("t") else device.diode).t_j_max
+        rated = device.rated_tj(name)
         over = np.flatnonzero(tj > rated)
         if len(over):
             k = int(np.nanargmax(tj))
