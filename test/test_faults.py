@@ -260,6 +260,27 @@ def test_domain_locks_are_open_to_every_user():
         assert stat.S_IMODE((LOCK_DIR / f"{d}.lock").stat().st_mode) == 0o666
 
 
+def test_a_held_domain_is_held_whatever_temporary_folder_a_process_has(tmp_path):
+    """Two processes with different TMPDIRs (each pytest worker's runs have one) never take one
+    domain: the lock files are machine-wide. A CI call met two graphs on one domain (47), each
+    taking the other's commands, when the lock folder followed TMPDIR."""
+    from predictive_drive.ros.processes import isolated_domain
+
+    code = (
+        "from predictive_drive.ros.processes import isolated_domain\n"
+        "from predictive_drive.errors import GraphError\n"
+        "try:\n"
+        "    with isolated_domain(range(231, 232)) as d: print('took', d)\n"
+        "except GraphError as e: print(e)\n"
+    )  # fmt: skip
+    with isolated_domain(range(231, 232)) as d:
+        assert d == 231
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           timeout=60, env={**os.environ, "TMPDIR": str(tmp_path)})  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "no free ROS domain id in 231..231: 1 predictive_drive runs at once?"
+
+
 def test_a_bad_domain_id_is_named():
     r = cli("param", "get", "plant", "u_dc", env={**os.environ, "ROS_DOMAIN_ID": "abc"})
     assert r.returncode == 2

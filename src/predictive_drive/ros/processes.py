@@ -48,7 +48,12 @@ __all__ = [
 ]
 
 DOMAIN_RANGE = range(1, 101)  # 101..232 left to tests and users
-LOCK_DIR = Path(tempfile.gettempdir()) / "predictive_drive_domains"
+#: the domains' lock files, machine-wide as the domain ids are: in /tmp whatever TMPDIR says (a
+#: TMPDIR of its own, as each pytest worker's runs had, gave each its own lock files, and two runs
+#: took one domain at once), in the temporary folder only where there is no /tmp
+LOCK_DIR = (Path("/tmp") if Path("/tmp").is_dir() else Path(tempfile.gettempdir())) / (
+    "predictive_drive_domains"
+)
 
 
 @contextmanager
