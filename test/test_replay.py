@@ -563,3 +563,45 @@ def test_replay_into_across_a_recorded_horizon_switch_reproduces_every_command(t
     b, _ = read_bag(tmp_path / "again")
     np.testing.assert_array_equal(a.command[:, :-1], b.command[:, :-1])
     assert set(b.col("command", "horizon")) == {1.0, 3.0}
+
+
+def test_a_ctrl_c_inside_a_replay_into_callback_is_raised_when_its_spin_returns(
+    tmp_path, monkeypatch, capfd
+):
+    """The command line's Ctrl-C lands while the replay's subscription takes a command (as it
+    does at any step): it is raised once the spin has returned, in the replay's own loop, and
+    the bag is closed with the steps replayed; rclpy's executor does not log the press as a
+    FATAL callback exception with its traceback."""
+    from predictive_drive import interrupts
+    from predictive_drive.api.replay import replay_into
+    from predictive_drive.errors import Interrupted
+    from predictive_drive.readback import read_bag
+    from predictive_drive.ros import stepper
+
+    rec = tmp_path / "rec"
+    run_inprocess_to_bag(load_scenario("im_short"), rec)
+    taken: list[int] = []
+    subscribe = stepper.raw_subscription
+
+    def pressing(node, name, callback):
+        def take(data):
+            if len(taken) == 300:
+                os.kill(os.getpid(), signal.SIGINT)  # the press, inside the callback
+                time.sleep(0.01)  # the handler runs here when the press is not held back
+            callback(data)
+            taken.append(1)
+
+        return subscribe(node, name, take)
+
+    monkeypatch.setattr(stepper, "raw_subscription", pressing)
+    before = signal.signal(signal.SIGINT, interrupts.interrupt)
+    try:
+        with pytest.raises(Interrupted, match=r"holds the first (\d+) of 8000 steps") as e:
+            replay_into(rec, out=tmp_path / "into")
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert len(taken) == 301  # the callback the press came in ran to its end
+    assert "Exception in" not in capfd.readouterr().err
+    kept = int(re.search(r"the first (\d+) of", str(e.value))[1])
+    tr, info = read_bag(tmp_path / "into")
+    assert info.complete and tr.steps == kept == 300  # the steps before the press's

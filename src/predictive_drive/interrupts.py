@@ -4,11 +4,12 @@ can stop, held back while a recording is being changed.
 A recorder takes a batch of steps into several structures at once (the chunk being filled, its
 message index, each channel's count); an interrupt between two of them would close the bag with an
 index that no longer matches its chunk. The command line's handler (:func:`interrupt`) therefore
-raises at once outside a :func:`held` block and at the block's end inside one. The launcher's
-spin of its /clock watcher is one too: raised inside a callback of ours, a KeyboardInterrupt is
-logged by rclpy's executor as a FATAL callback exception with its traceback, and cuts the progress
-bar's drawing. Processes that handle signals otherwise (the ROS nodes stop at their spin loop's
-next turn) are not affected.
+raises at once outside a :func:`held` block and at the block's end inside one. Every spin of an
+rclpy executor in that process (the launcher's /clock watcher, the player, the stepper:
+``ros.transport.spin_once``) is one too: raised inside a callback, a KeyboardInterrupt is logged
+by rclpy's executor as a FATAL callback exception with its traceback, and cuts the callback.
+Processes that handle signals otherwise (the ROS nodes stop at their spin loop's next turn) are
+not affected.
 """
 
 from __future__ import annotations

@@ -18,7 +18,6 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .. import interrupts
 from ..bag import LOGS_DIR, check_new_bag
 from ..core.control.base import parse_switch
 from ..core.scenario import Scenario
@@ -505,10 +504,11 @@ class _ClockWatcher:
     ) -> None:
         from rclpy.parameter_client import AsyncParameterClient
 
-        from .transport import ros_session
+        from .transport import ros_session, spin_once
 
         self._session = ros_session(LAUNCHER_NODE, domain=domain, namespace=NAMESPACE, log_dir=logs)
         self.node, self.ex = self._session.__enter__()
+        self._spin_once = spin_once  # a Ctrl-C raised when it returns: not in the drawing
         self.ts = sc.ts
         self.progress = progress
         self.pending = sorted(switches)
@@ -558,11 +558,7 @@ class _ClockWatcher:
         # /clock only once a timed switch can go out at once: the plant holds step 0 until then
         if self._clock_sub is None and (not self.pending or self.client.services_are_ready()):
             self._follow_clock()
-        # a Ctrl-C is raised when the spin returns, never inside a callback of ours, where
-        # rclpy's executor would log it as a FATAL callback exception with its traceback and
-        # the progress bar's drawing would be cut
-        with interrupts.held():
-            self.ex.spin_once(timeout_sec=timeout)
+        self._spin_once(self.ex, timeout)
         if self._inflight is not None:
             what, name, fut, sent = self._inflight
             if fut.done():

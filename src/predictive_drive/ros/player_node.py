@@ -29,7 +29,7 @@ from ..bag import RecordedTopic, first_log_time, iter_messages, recorded_topics
 from ..codec import encode_clock
 from ..errors import ConfigError
 from ..interface import NAMESPACE, PLAYER_NODE, TOPICS, Qos
-from .transport import msg_class, qos
+from .transport import msg_class, qos, spin_once
 
 __all__ = ["PlayOptions", "PlayResult", "PlayerNode", "play"]
 
@@ -238,7 +238,7 @@ def play(bag: str | Path, options: PlayOptions, *, context: Any = None) -> PlayR
                         # paused: wait for a parameter set (it wakes the spin) a service
                         # period at a time; a zero timeout kept a core ~35 % busy
                         wait = SERVICE_PERIOD if clock.paused else (due - clock.now()) / clock.rate
-                        ex.spin_once(timeout_sec=min(max(wait, 0.0), SERVICE_PERIOD))
+                        spin_once(ex, min(max(wait, 0.0), SERVICE_PERIOD))
                         next_service = time.perf_counter() + SERVICE_PERIOD
                     if node.clock_pub is not None and wall >= next_clock and not clock.paused:
                         # the replayed time within this pass: the pace's while on time, the
@@ -311,14 +311,14 @@ def _matched(node: PlayerNode, ex: Any, wait_for: int | None) -> None:
                     file=sys.stderr,
                     flush=True,
                 )
-            ex.spin_once(timeout_sec=SERVICE_PERIOD)
+            spin_once(ex, SERVICE_PERIOD)
         return
     least, still, most = SETTLE
     seen, since = counts(), start
     while (now := time.perf_counter()) - start < most:
         if now - start >= least and now - since >= still:
             return
-        ex.spin_once(timeout_sec=SERVICE_PERIOD)
+        spin_once(ex, SERVICE_PERIOD)
         if (c := counts()) != seen:
             seen, since = c, time.perf_counter()
 

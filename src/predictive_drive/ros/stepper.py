@@ -58,7 +58,7 @@ from .processes import (
     start_process,
     stop_processes,
 )
-from .transport import raw_publisher, raw_subscription, ros_session
+from .transport import raw_publisher, raw_subscription, ros_session, spin_once
 
 __all__ = ["StepResult", "replay_into"]
 
@@ -374,4 +374,4 @@ def _wait(
                 f"no {what} from {node} within {timeout:g} s: it runs (pid {proc.pid}) but never "
                 f"answered; its log: {log}"
             )
-        ex.spin_once(timeout_sec=0.01)
+        spin_once(ex, 0.01)

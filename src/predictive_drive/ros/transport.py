@@ -13,6 +13,7 @@ from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from .. import interrupts
 from ..interface import TOPICS, Qos
 from .placement import ros_log_dir
 
@@ -26,6 +27,7 @@ __all__ = [
     "raw_subscription",
     "ros_context",
     "ros_session",
+    "spin_once",
 ]
 
 
@@ -48,6 +50,15 @@ def executor(context: Any = None) -> Any:
     from rclpy.experimental.events_executor import EventsExecutor
 
     return EventsExecutor(context=context)
+
+
+def spin_once(ex: Any, timeout: float) -> None:
+    """One turn of a tool's executor in the command line's process (the launcher's watch, the
+    player, the stepper): a Ctrl-C that comes meanwhile is raised when the spin returns, never
+    inside a callback, where rclpy's executor logs it as a FATAL callback exception with its
+    traceback and the callback is cut (see :mod:`~predictive_drive.interrupts`)."""
+    with interrupts.held():
+        ex.spin_once(timeout_sec=timeout)
 
 
 @contextmanager
