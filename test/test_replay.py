@@ -605,3 +605,47 @@ def test_a_ctrl_c_inside_a_replay_into_callback_is_raised_when_its_spin_returns(
     kept = int(re.search(r"the first (\d+) of", str(e.value))[1])
     tr, info = read_bag(tmp_path / "into")
     assert info.complete and tr.steps == kept == 300  # the steps before the press's
+
+
+def test_a_ctrl_c_inside_the_players_parameter_callback_is_raised_when_its_spin_returns(
+    recording, monkeypatch, capfd
+):
+    """`replay` plays in the command line's process: a Ctrl-C that lands while the player
+    applies `param set player paused false` is raised once the spin has returned, and the
+    replay ends as interrupted with what went out; the callback runs to its end and rclpy's
+    executor does not log the press as a FATAL callback exception with its traceback."""
+    from predictive_drive import interrupts
+    from predictive_drive.ros import player_node
+    from predictive_drive.ros.processes import isolated_domain
+    from predictive_drive.ros.transport import ros_context
+
+    applied: list[list[str]] = []
+    apply = player_node.PlayerNode._apply
+
+    def pressing(self, params):
+        os.kill(os.getpid(), signal.SIGINT)  # the press, inside the callback
+        time.sleep(0.01)  # the handler runs here when the press is not held back
+        apply(self, params)
+        applied.append([p.name for p in params])
+
+    monkeypatch.setattr(player_node.PlayerNode, "_apply", pressing)
+    answers: list[subprocess.CompletedProcess] = []
+    before = signal.signal(signal.SIGINT, interrupts.interrupt)
+    try:
+        with isolated_domain() as domain, ros_context(domain) as ctx:
+            env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
+            go = threading.Thread(target=lambda: answers.append(subprocess.run(
+                [*CLI, "param", "set", "player", "paused", "false", "--timeout", "30"],
+                env=env, capture_output=True, text=True, timeout=60)))  # fmt: skip
+            go.start()
+            try:
+                result = player_node.play(
+                    recording, player_node.PlayOptions(start_paused=True), context=ctx
+                )
+            finally:
+                go.join(timeout=60)
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert answers and _set(answers[0]), answers
+    assert result.interrupted and applied == [["paused"]]
+    assert "Exception in" not in capfd.readouterr().err
