@@ -504,11 +504,10 @@ class _ClockWatcher:
     ) -> None:
         from rclpy.parameter_client import AsyncParameterClient
 
-        from .transport import ros_session, spin_once
+        from .transport import ros_session
 
         self._session = ros_session(LAUNCHER_NODE, domain=domain, namespace=NAMESPACE, log_dir=logs)
         self.node, self.ex = self._session.__enter__()
-        self._spin_once = spin_once  # a Ctrl-C raised when it returns: not in the drawing
         self.ts = sc.ts
         self.progress = progress
         self.pending = sorted(switches)
@@ -554,11 +553,12 @@ class _ClockWatcher:
 
     def spin(self, timeout: float) -> None:
         from .params import RESEND_AFTER
+        from .transport import spin_once
 
         # /clock only once a timed switch can go out at once: the plant holds step 0 until then
         if self._clock_sub is None and (not self.pending or self.client.services_are_ready()):
             self._follow_clock()
-        self._spin_once(self.ex, timeout)
+        spin_once(self.ex, timeout)  # a Ctrl-C raised when it returns: not in the drawing
         if self._inflight is not None:
             what, name, fut, sent = self._inflight
             if fut.done():
